@@ -1,0 +1,57 @@
+"""Kinematic-core speed (issue 2): factorizations batched and single, and a full design solve.
+
+Run: ``.venv/bin/python benchmarks/bench_core.py``. Prints figures; asserts nothing.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+from paraloop_core import design, factor, pipeline, poly
+
+
+def _timeit(fn, repeat: int) -> np.ndarray:
+    out = np.empty(repeat)
+    for k in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        out[k] = time.perf_counter() - t0
+    return out
+
+
+def random_cubics(n: int, seed: int = 0) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    h = rng.normal(size=(n, 3, 8))
+    h[..., 4] = 0.0
+    p = h[..., 1:4]
+    h[..., 5:8] -= np.sum(p * h[..., 5:8], -1, keepdims=True) / np.sum(p * p, -1, keepdims=True) * p
+    return poly.from_factors(h)
+
+
+def main() -> None:
+    cubics = random_cubics(10_000)
+    factor.all_factorizations_batch(cubics[:10])  # warm-up
+    batch = _timeit(lambda: factor.all_factorizations_batch(cubics), 5)
+    facts = factor.all_factorizations_batch(cubics)
+    err = np.abs(poly.from_factors(facts.factors) - cubics[:, None]).max(axis=(-3, -2, -1))
+    print(f"six factorizations, batch of 10,000: {batch.min() * 1e3:.1f} ms total, "
+          f"{batch.min() / 1e4 * 1e3:.4f} ms per motion; generic {facts.ok.mean():.4f}; "
+          f"max rel. product error {np.max(err / np.abs(cubics).max(axis=(-2, -1))):.1e}")
+    single = _timeit(lambda: factor.all_factorizations(cubics[0]), 300)
+    print(f"six factorizations, one call: median {np.median(single) * 1e3:.3f} ms")
+    hss = _timeit(lambda: factor.factorize(cubics[0]), 300)
+    print(f"one HSS factorization, one call: median {np.median(hss) * 1e3:.3f} ms")
+
+    path = Path(__file__).resolve().parents[1] / "assets" / "designs" / "tv8.json"
+    d = design.load_design(path)
+    pipeline.solve(d, realize=False)
+    full = _timeit(lambda: pipeline.solve(d, realize=False), 200)
+    print(f"four-pose + six factorizations + nine loops + singularity ({path.name}): "
+          f"median {np.median(full) * 1e3:.2f} ms, p95 {np.percentile(full, 95) * 1e3:.2f} ms")
+
+
+if __name__ == "__main__":
+    main()

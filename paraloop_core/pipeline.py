@@ -1,0 +1,156 @@
+"""Design -> solution: motion, six factorizations, nine loops, singularity, realization.
+
+The result JSON (``docs/result-format.md``) is produced by :func:`result_to_dict`.
+World frame throughout: the motion is ``C(t) = M(t) S_0`` with ``M`` monic, so ``C(inf) ∝ S_0``
+and the factors of ``M`` are rotation axes in world coordinates.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from . import dq, factor, fourpose, loops, metric, poly, singularity
+from .design import Design
+
+RESULT_FORMAT = "paraloop-result"
+RESULT_VERSION = 1
+
+
+@dataclass(frozen=True)
+class Solution:
+    """Everything computed from a design (arrays in world coordinates, design units)."""
+
+    design: Design
+    motion: np.ndarray  # (4, 8) C(t) = M(t) S_0, ascending powers
+    monic: np.ndarray  # (4, 8) M(t), monic
+    reference: np.ndarray  # (8,) S_0 (unit)
+    pose_parameters: np.ndarray  # (m,) t_i with C(t_i) ∝ S_i; inf for S_0
+    mu: float | None  # family parameter used (None = inf)
+    factorizations: factor.Factorizations
+    loops: list[loops.Loop]
+    singularity: np.ndarray  # (9,) min over the cycle of the singularity measure
+    singularity_t: np.ndarray  # (9,) where the min occurs (inf allowed)
+    realization: Any = None  # realize.Realization or None
+
+    @property
+    def loop(self) -> loops.Loop:
+        return self.loops[self.design.loop]
+
+
+def design_poses(design: Design) -> np.ndarray:
+    """Unit world poses ``(m, 8)`` of the design's targets."""
+    pos, wxyz = design.pose_array
+    return dq.from_pos_wxyz(pos, wxyz)
+
+
+def inertia_of(design: Design) -> metric.Inertia:
+    s = design.inertia
+    return metric.Inertia(s.center, s.axes, s.semi_axes, s.weight)
+
+
+def _four_pose(design: Design, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray, float | None]:
+    """Relative monic cubic (S_0 frame), visiting parameters and the mu used."""
+    fams = fourpose.four_pose_families(poses)
+    m = design.motion
+    mu = m.mu
+    if m.criterion is not None:
+        from . import selection  # only needed when a criterion picks mu
+
+        mu, _ = selection.best_mu(fams, m.family, m.criterion, **_criterion_params(design))
+    c_rel = fourpose.four_pose_motion(fams, m.family, mu)
+    return c_rel, np.concatenate([[np.inf], fams.t[m.family]]), mu
+
+
+def _criterion_params(design: Design) -> dict[str, Any]:
+    crit = design.motion.criterion
+    if crit == "length":
+        return {"inertia": inertia_of(design)}
+    if crit in ("base-axes", "end-axes"):
+        # Default user location: the centroid of the target positions.
+        return {"loop": design.loop, "points": design.pose_array[0].mean(0, keepdims=True)}
+    return {}
+
+
+def solve(design: Design, *, realize: bool = True) -> Solution:
+    """Compute the solution of a design; raises ParaloopError subclasses (ValueError) with a
+    clear message for degenerate poses, non-generic motions or failed realizations."""
+    poses = design_poses(design)
+    if design.motion.method != "four-pose":
+        raise ValueError("motion method 'fit' is not available yet (see issue 4)")
+    c_rel, pose_t, mu = _four_pose(design, poses)
+    reference = poses[0]
+    monic = fourpose.world_motion(reference, c_rel)
+    facts = factor.all_factorizations(monic)
+    loop_list = loops.nine_loops(facts)
+    jf = np.stack([lp.joint_factors for lp in loop_list])
+    s_min, s_t = singularity.singularity_min(jf)
+    motion = dq.mul(monic, reference)
+    sol = Solution(design, motion, monic, reference, pose_t, mu, facts, loop_list, s_min, s_t)
+    if realize and design.realization.enabled:
+        sol = _with_realization(sol)
+    return sol
+
+
+def _with_realization(sol: Solution) -> Solution:
+    from dataclasses import replace
+
+    from . import realize as realize_mod
+
+    r = sol.design.realization
+    real = realize_mod.realize(
+        sol.loop.joint_factors, p=r.p, rho=r.rho, d=r.d, d_fraction=r.d_fraction,
+        rho_fraction=r.rho_fraction, fixed=dict(r.fixed), max_k=r.max_k,
+    )
+    return replace(sol, realization=real)
+
+
+def _t_json(t: float) -> float | None:
+    return None if np.isinf(t) else float(t)
+
+
+def result_to_dict(sol: Solution) -> dict[str, Any]:
+    """The result JSON (see ``docs/result-format.md``)."""
+    facts = sol.factorizations
+    labels = "ABC"
+    out: dict[str, Any] = {
+        "format": RESULT_FORMAT,
+        "version": RESULT_VERSION,
+        "design": sol.design.name,
+        "convention": "dual quaternion [p0,p1,p2,p3,d0,d1,d2,d3], point action "
+        "x -> (P x P~ + 2 D P~)/|P|^2; lines (direction, moment = point x direction)",
+        "motion": {
+            "coefficients": sol.motion.tolist(),
+            "pose_parameters": [_t_json(t) for t in sol.pose_parameters],
+            "family": sol.design.motion.family,
+            "mu": _t_json(np.inf if sol.mu is None else sol.mu),
+            "norm_quadratics": {labels[i]: [float(q[0]), float(q[1]), 1.0]
+                                for i, q in enumerate(facts.quadratics)},
+        },
+        "factorizations": [
+            {"norm_order": [labels[i] for i in facts.norm_order[j]],
+             "factors": facts.factors[j].tolist()}
+            for j in range(6)
+        ],
+        "loops": [
+            {"type": lp.kind, "factorizations": list(lp.factorizations),
+             "axes": lp.axes.tolist(), "singularity": float(sol.singularity[k]),
+             "singularity_t": _t_json(sol.singularity_t[k])}
+            for k, lp in enumerate(sol.loops)
+        ],
+        "loop": sol.design.loop,
+    }
+    if sol.realization is not None:
+        from . import realize as realize_mod
+
+        out["realization"] = {"loop": sol.design.loop,
+                              **realize_mod.realization_to_dict(sol.realization)}
+    return out
+
+
+def sample_motion(sol: Solution, samples: int = 256) -> tuple[np.ndarray, np.ndarray]:
+    """Parameters ``t`` (K,) over the whole cycle and unit world poses ``(K, 8)`` of C(t)."""
+    t = poly.param_to_t(np.linspace(0.0, 1.0, samples, endpoint=False))
+    return t, dq.normalize(poly.evaluate_pose(sol.motion, t))
