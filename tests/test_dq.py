@@ -103,3 +103,15 @@ def test_bad_input_messages():
         dq.from_pos_wxyz(np.zeros(3), np.zeros(4))
     with pytest.raises(ValueError, match=r"\(\.\.\., 8\)"):
         dq.inv(np.zeros(7))
+
+
+def test_small_and_large_product_paths_agree():
+    rng = np.random.default_rng(5)
+    a, b = rng.normal(size=(2, 3000, 8))
+    big = dq.mul(a, b)  # sliced path
+    small = np.stack([dq.mul(a[k], b[k]) for k in range(0, 3000, 300)])  # einsum path
+    assert np.allclose(big[::300], small)
+    # against the definition with explicit i, j, k rules: i j = k, j k = i, k i = j
+    e = np.eye(4)
+    assert np.allclose(dq.qmul(e[1], e[2]), e[3]) and np.allclose(dq.qmul(e[2], e[3]), e[1])
+    assert np.allclose(dq.qmul(e[3], e[1]), e[2]) and np.allclose(dq.qmul(e[1], e[1]), -e[0])

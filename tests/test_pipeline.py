@@ -1,0 +1,83 @@
+"""Design -> result: the result JSON satisfies its documented contract."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from paraloop_core import design, dq, loops, pipeline, poly
+
+ASSETS = Path(__file__).resolve().parents[1] / "assets" / "designs"
+
+
+@pytest.fixture(scope="module")
+def tv8_result():
+    d = design.load_design(ASSETS / "tv8.json")
+    return d, pipeline.result_to_dict(pipeline.solve(d, realize=False))
+
+
+def test_motion_visits_the_poses(tv8_result):
+    d, res = tv8_result
+    c = np.array(res["motion"]["coefficients"])
+    targets = pipeline.design_poses(d)
+    for t, pose in zip(res["motion"]["pose_parameters"], targets):
+        at = poly.evaluate_pose(c, np.inf if t is None else t)
+        assert np.allclose(dq.normalize(at), dq.normalize(pose), atol=1e-9)
+    assert res["motion"]["pose_parameters"][0] is None
+
+
+def test_tv8_family_a_reproduces_tv6(tv8_result):
+    _, res = tv8_result
+    # TV8: family A visits (17/16, 5/8, 31/16); mu = 3/2 gives a^3 C((t - b)/a) of TV6
+    assert np.allclose(res["motion"]["pose_parameters"][1:], [17 / 16, 5 / 8, 31 / 16])
+    quads = np.array([res["motion"]["norm_quadratics"][k] for k in "ABC"])
+    a, b = -7 / 16, 3 / 2  # t^2 + s -> ((t - b)/a)^2 + s, made monic
+    want = np.array([[b * b + s * a * a, -2 * b, 1.0] for s in (1, 4, 9)])
+    assert np.allclose(quads, want)
+
+
+def test_factorizations_and_loops_contract(tv8_result):
+    d, res = tv8_result
+    c = np.array(res["motion"]["coefficients"])
+    s0 = pipeline.design_poses(d)[0]
+    assert len(res["factorizations"]) == 6
+    for f in res["factorizations"]:
+        prod = poly.mul(poly.from_factors(np.array(f["factors"])), s0[None])
+        scale = np.abs(c).max() / np.abs(prod).max()
+        assert np.allclose(prod * scale, c, atol=1e-9 * np.abs(c).max())
+        assert sorted(f["norm_order"]) == ["A", "B", "C"]
+    assert len(res["loops"]) == 9
+    assert sum(lp["type"] == "angle-symmetric" for lp in res["loops"]) == 3
+    for lp in res["loops"]:
+        axes = np.array(lp["axes"])
+        assert np.allclose(np.linalg.norm(axes[:, :3], axis=1), 1.0)
+        assert np.allclose(np.sum(axes[:, :3] * axes[:, 3:], 1), 0.0, atol=1e-12)
+        fa, fb = (res["factorizations"][i]["factors"] for i in lp["factorizations"])
+        want = loops.factor_axes(np.array(fa + fb[::-1]))
+        assert np.allclose(axes, want)
+        assert lp["singularity"] > 0
+
+
+def test_result_is_plain_json(tv8_result):
+    _, res = tv8_result
+    assert json.loads(json.dumps(res, allow_nan=False)) == res
+
+
+def test_world_frame_is_respected():
+    """Moving every pose by a rigid transform moves the axes by it (frame equivariance)."""
+    d = design.load_design(ASSETS / "tv8.json")
+    g = dq.from_pos_wxyz(np.array([0.3, -1.0, 2.0]), np.array([0.9, 0.1, -0.3, 0.2]))
+    from dataclasses import replace
+
+    moved = []
+    for p in d.poses:
+        q = dq.mul(g, dq.from_pos_wxyz(p.position, p.wxyz))
+        pos, wxyz = dq.to_pos_wxyz(q)
+        moved.append(design.Pose(pos, wxyz))
+    a = pipeline.solve(d, realize=False)
+    b = pipeline.solve(replace(d, poses=tuple(moved)), realize=False)
+    assert np.allclose(b.pose_parameters, a.pose_parameters)
+    assert np.allclose(b.loop.axes, dq.transform_lines(g, a.loop.axes), atol=1e-9)
