@@ -11,6 +11,7 @@ import json
 import sys
 from pathlib import Path
 
+from app import export_cmd, studio, validate_realization
 from paraloop_core import design as design_mod
 from paraloop_core import pipeline
 from paraloop_core.errors import ParaloopError
@@ -72,8 +73,8 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-_COMMAND_MODULES: list = []
-_VALIDATE_MODULES: list = []
+_COMMAND_MODULES: list = [studio, export_cmd]
+_VALIDATE_MODULES: list = [validate_realization]
 
 
 def main(argv: list[str] | None = None) -> int:

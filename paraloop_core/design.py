@@ -35,12 +35,15 @@ class Pose:
 @dataclass(frozen=True)
 class MotionSettings:
     """``method``: 'four-pose' (exactly 4 poses) or 'fit' (>= 5); ``family`` 0|1; ``mu`` the family
-    parameter (None = infinity); ``criterion`` (if set, mu is chosen by :func:`selection.best_mu`)."""
+    parameter (None = infinity); ``criterion`` (if set, mu is chosen by :func:`selection.best_mu`);
+    ``targets`` (2, 3) world points for the axis criteria; ``extra_poses`` for 'extra-poses'."""
 
     method: str = "four-pose"
     family: int = 0
     mu: float | None = None
     criterion: str | None = None
+    targets: np.ndarray | None = None
+    extra_poses: tuple[Pose, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -131,7 +134,7 @@ def _pose(v: Any, path: str) -> Pose:
 
 def _motion(v: Any) -> MotionSettings:
     d = _obj(v, "motion")
-    _check_keys(d, {"method", "family", "mu", "criterion"}, "motion")
+    _check_keys(d, {"method", "family", "mu", "criterion", "targets", "extra_poses"}, "motion")
     method = d.get("method", "four-pose")
     if method not in METHODS:
         raise DesignFileError("motion.method", f"must be one of {METHODS}, got {method!r}")
@@ -143,7 +146,21 @@ def _motion(v: Any) -> MotionSettings:
     crit = d.get("criterion")
     if crit is not None and crit not in CRITERIA:
         raise DesignFileError("motion.criterion", f"must be one of {CRITERIA} or null")
-    return MotionSettings(method, int(family), mu, crit)
+    targets = None
+    if d.get("targets") is not None:
+        rows = d["targets"]
+        if not isinstance(rows, list) or len(rows) != 2:
+            raise DesignFileError("motion.targets", "must be two points [[x, y, z], [x, y, z]]")
+        targets = np.array([_vec(r, 3, f"motion.targets[{i}]") for i, r in enumerate(rows)])
+    extra = d.get("extra_poses", [])
+    if not isinstance(extra, list):
+        raise DesignFileError("motion.extra_poses", "must be a list of poses")
+    extra_poses = tuple(_pose(p, f"motion.extra_poses[{i}]") for i, p in enumerate(extra))
+    if crit in ("base-axes", "end-axes") and targets is None:
+        raise DesignFileError("motion.targets", f"criterion {crit!r} needs two target points")
+    if crit == "extra-poses" and not extra_poses:
+        raise DesignFileError("motion.extra_poses", "criterion 'extra-poses' needs poses")
+    return MotionSettings(method, int(family), mu, crit, targets, extra_poses)
 
 
 def _inertia(v: Any) -> InertiaSettings:
@@ -240,6 +257,10 @@ def design_from_dict(data: Any) -> Design:
     )
 
 
+def _pose_dict(p: Pose) -> dict[str, list[float]]:
+    return {"position": p.position.tolist(), "wxyz": p.wxyz.tolist()}
+
+
 def design_to_dict(design: Design) -> dict[str, Any]:
     """JSON-ready dict of a design (round-trips through :func:`design_from_dict`)."""
     r = design.realization
@@ -247,13 +268,14 @@ def design_to_dict(design: Design) -> dict[str, Any]:
         "format": FORMAT,
         "version": VERSION,
         "name": design.name,
-        "poses": [{"position": p.position.tolist(), "wxyz": p.wxyz.tolist()}
-                  for p in design.poses],
+        "poses": [_pose_dict(p) for p in design.poses],
         "motion": {
             "method": design.motion.method,
             "family": design.motion.family,
             "mu": "inf" if design.motion.mu is None else design.motion.mu,
             "criterion": design.motion.criterion,
+            "targets": None if design.motion.targets is None else design.motion.targets.tolist(),
+            "extra_poses": [_pose_dict(p) for p in design.motion.extra_poses],
         },
         "inertia": {
             "center": design.inertia.center.tolist(),

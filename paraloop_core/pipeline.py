@@ -65,13 +65,14 @@ def _four_pose(design: Design, poses: np.ndarray) -> tuple[np.ndarray, np.ndarra
 
 
 def _criterion_params(design: Design) -> dict[str, Any]:
-    crit = design.motion.criterion
-    if crit == "length":
+    """Parameters of the design's selection criterion (validated by the design loader)."""
+    m = design.motion
+    if m.criterion == "length":
         return {"inertia": inertia_of(design)}
-    if crit in ("base-axes", "end-axes"):
-        # Default user location: the centroid of the target positions.
-        return {"loop": design.loop, "points": design.pose_array[0].mean(0, keepdims=True)}
-    return {}
+    if m.criterion in ("base-axes", "end-axes"):
+        return {"loop": design.loop, "points": m.targets}
+    extra = np.array([dq.from_pos_wxyz(p.position, p.wxyz) for p in m.extra_poses])
+    return {"poses": extra, "inertia": inertia_of(design)}
 
 
 def solve(design: Design, *, realize: bool = True) -> Solution:

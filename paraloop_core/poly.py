@@ -183,10 +183,28 @@ def reparametrize(c: np.ndarray, a: float, b: float) -> np.ndarray:
     return out
 
 
-def real_poly_roots(coeffs: np.ndarray) -> np.ndarray:
-    """Complex roots ``(..., d)`` of real polynomials ``(..., d+1)`` (ascending, nonzero leading)
-    by batched companion-matrix eigenvalues."""
+def real_poly_roots(coeffs: np.ndarray, rtol: float | None = None) -> np.ndarray:
+    """Complex roots ``(..., d)`` of real polynomials ``(..., d+1)`` (ascending) by batched
+    companion-matrix eigenvalues.
+
+    Without ``rtol`` the leading coefficient must be nonzero. With ``rtol``, leading coefficients
+    ``|c| <= rtol * max|c|`` count as zero (degree drop = roots at t = inf): an item of effective
+    degree e gets its e roots first and NaN for the other d - e (all NaN if constant or zero).
+    """
     coeffs = np.asarray(coeffs, dtype=np.float64)
+    d = coeffs.shape[-1] - 1
+    if rtol is None:
+        return _companion_roots(coeffs)
+    big = np.abs(coeffs) > rtol * np.max(np.abs(coeffs), axis=-1, keepdims=True)
+    deg = np.where(big.any(-1), d - np.argmax(big[..., ::-1], axis=-1), 0)
+    out = np.full(coeffs.shape[:-1] + (d,), np.nan, dtype=np.complex128)
+    for e in np.unique(deg[deg > 0]):  # at most d groups, each batched
+        sel = deg == e
+        out[sel, :e] = _companion_roots(coeffs[sel][:, : e + 1])
+    return out
+
+
+def _companion_roots(coeffs: np.ndarray) -> np.ndarray:
     d = coeffs.shape[-1] - 1
     comp = np.zeros(coeffs.shape[:-1] + (d, d))
     comp[..., 1:, :-1] = np.eye(d - 1)

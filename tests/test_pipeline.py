@@ -81,3 +81,22 @@ def test_world_frame_is_respected():
     b = pipeline.solve(replace(d, poses=tuple(moved)), realize=False)
     assert np.allclose(b.pose_parameters, a.pose_parameters)
     assert np.allclose(b.loop.axes, dq.transform_lines(g, a.loop.axes), atol=1e-9)
+
+
+@pytest.mark.parametrize("criterion", ["length", "end-axes", "base-axes", "extra-poses"])
+def test_criteria_choose_mu_through_the_design(criterion):
+    from dataclasses import replace
+
+    from paraloop_core import fourpose, selection
+
+    d = design.load_design(ASSETS / "tv8.json")
+    extra = (design.Pose(np.array([0.2, -1.0, -0.3]), np.array([0.8, 0.4, -0.4, 0.1])),)
+    motion = replace(d.motion, criterion=criterion, targets=np.array([[0, 0, 0], [1, 1, 0.0]]),
+                     extra_poses=extra)
+    chosen = replace(d, motion=motion)
+    sol = pipeline.solve(chosen, realize=False)
+    fams = fourpose.four_pose_families(pipeline.design_poses(d))
+    params = pipeline._criterion_params(chosen)
+    best = selection.score_mu(fams, d.motion.family, np.array([sol.mu]), criterion, **params)
+    fixed = selection.score_mu(fams, d.motion.family, np.array([1.5]), criterion, **params)
+    assert best[0] <= fixed[0] + 1e-9

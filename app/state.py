@@ -1,0 +1,158 @@
+"""The studio's plain state: the design being edited, undo/redo history and autosave.
+
+UI handlers only call the methods here (cheap, lock-protected); the worker reads snapshots.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from paraloop_core import design as design_mod
+from paraloop_core.design import Design, Pose
+
+HISTORY = 200
+MERGE_SECONDS = 1.5
+
+
+def autosave_path_for(design_path: Path | None, name: str) -> Path:
+    """``<stem>.autosave.json`` next to a writable opened design, else in the user data folder
+    (``$XDG_DATA_HOME/paraloop/autosave`` or ``~/.local/share/paraloop/autosave``)."""
+    if design_path is not None and os.access(design_path.parent, os.W_OK):
+        return design_path.with_name(design_path.stem + ".autosave.json")
+    base = Path(os.environ.get("XDG_DATA_HOME") or Path.home() / ".local" / "share")
+    safe = "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in name) or "untitled"
+    return base / "paraloop" / "autosave" / f"{safe}.json"
+
+
+class StudioState:
+    """Current design (``design``), the last committed one, history and animation settings.
+
+    ``preview`` changes the design without history (during a drag); ``commit`` records an
+    undoable edit. ``version`` increases on every change so the worker can tell what is new.
+    """
+
+    def __init__(self, design: Design, autosave_path: Path | None = None) -> None:
+        self._lock = threading.RLock()
+        self.design = design
+        self.committed = design
+        self.undo_stack: list[Design] = []
+        self.redo_stack: list[Design] = []
+        self.version = 0
+        self.saved_version = 0
+        self.autosave_path = autosave_path
+        self.u = 0.0  # animation parameter in [0, 1]
+        self.playing = False
+        self.speed = 0.1  # cycles per second
+        self.hidden: set[str] = set()  # view layers switched off
+        self.thickness = 1.0  # bars drawn this many times their radius
+        self._merge_key: str | None = None
+        self._merge_time = 0.0
+
+    # --- edits ------------------------------------------------------------------------------
+    def preview(self, design: Design) -> None:
+        """Show ``design`` now; the edit becomes undoable at the next :meth:`commit`."""
+        with self._lock:
+            self.design = design
+            self.version += 1
+
+    def commit(self, design: Design | None = None, merge: str | None = None) -> None:
+        """Record ``design`` (default: the previewed one) as one undoable edit; edits with the
+        same ``merge`` key within ``MERGE_SECONDS`` (a slider being dragged) become one."""
+        with self._lock:
+            design = self.design if design is None else design
+            now = time.monotonic()
+            merged = (merge is not None and merge == self._merge_key
+                      and now - self._merge_time < MERGE_SECONDS and bool(self.undo_stack))
+            if not merged:
+                self.undo_stack.append(self.committed)
+                del self.undo_stack[:-HISTORY]
+            self._merge_key, self._merge_time = merge, now
+            self.redo_stack.clear()
+            self.design = self.committed = design
+            self.version += 1
+
+    def edit(self, change: Callable[[Design], Design], merge: str | None = None) -> None:
+        """Commit ``change(current design)`` atomically (see :meth:`commit` for ``merge``)."""
+        with self._lock:
+            self.commit(change(self.design), merge=merge)
+
+    def undo(self) -> bool:
+        with self._lock:
+            if not self.undo_stack:
+                return False
+            self.redo_stack.append(self.committed)
+            self._merge_key = None
+            self.design = self.committed = self.undo_stack.pop()
+            self.version += 1
+            return True
+
+    def redo(self) -> bool:
+        with self._lock:
+            if not self.redo_stack:
+                return False
+            self.undo_stack.append(self.committed)
+            self._merge_key = None
+            self.design = self.committed = self.redo_stack.pop()
+            self.version += 1
+            return True
+
+    def snapshot(self) -> tuple[Design, int]:
+        """The current design and its version."""
+        with self._lock:
+            return self.design, self.version
+
+    # --- pose edits -------------------------------------------------------------------------
+    def move_pose(self, i: int, position: np.ndarray, wxyz: np.ndarray, commit: bool) -> bool:
+        """Move target ``i`` (ignored and False when locked)."""
+        with self._lock:
+            d = self.design
+            if i in d.locked or not 0 <= i < len(d.poses):
+                return False
+            pose = Pose(np.asarray(position, float).copy(), np.asarray(wxyz, float).copy())
+            new = dataclasses.replace(d, poses=d.poses[:i] + (pose,) + d.poses[i + 1 :])
+            (self.commit if commit else self.preview)(new)
+            return True
+
+    def set_locked(self, i: int, locked: bool) -> bool:
+        """Lock or unlock pose ``i``; at least one pose stays free. False if refused."""
+        with self._lock:
+            d = self.design
+            new = set(d.locked) | {i} if locked else set(d.locked) - {i}
+            if len(new) >= len(d.poses) or new == set(d.locked):
+                return False
+            self.commit(dataclasses.replace(d, locked=tuple(sorted(new))))
+            return True
+
+    def add_pose(self, pose: Pose) -> None:
+        with self._lock:
+            self.commit(dataclasses.replace(self.design, poses=self.design.poses + (pose,)))
+
+    def remove_pose(self, i: int) -> bool:
+        """Remove target ``i``; lock indices are renumbered. False if out of range."""
+        with self._lock:
+            d = self.design
+            if not 0 <= i < len(d.poses) or len(d.poses) <= 1:
+                return False
+            locked = tuple(j - (j > i) for j in d.locked if j != i)
+            self.commit(dataclasses.replace(d, poses=d.poses[:i] + d.poses[i + 1 :],
+                                            locked=locked))
+            return True
+
+    # --- autosave ---------------------------------------------------------------------------
+    def autosave(self) -> bool:
+        """Write the committed design to the autosave file if it changed since the last write."""
+        with self._lock:
+            if self.autosave_path is None or self.saved_version == self.version:
+                return False
+            design, version = self.committed, self.version
+        self.autosave_path.parent.mkdir(parents=True, exist_ok=True)
+        design_mod.save_design(design, self.autosave_path)
+        self.saved_version = version
+        return True

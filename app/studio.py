@@ -1,0 +1,343 @@
+"""``paraloop studio``: the browser design studio (viser server).
+
+Handlers edit :class:`~app.state.StudioState` and ask the :class:`~app.worker.NewestWorker` for
+an update; the worker solves the newest design with :func:`pipeline.solve` and draws it inside
+``server.atomic()``: a cheap preview while a gizmo is dragged (motion, factorizations, axes)
+and a full update with the realization on release. Failures become notifications while the
+last valid solution stays on screen.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import importlib.util
+import json
+import signal
+import sys
+import threading
+import time
+import traceback
+from collections import OrderedDict
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import viser
+
+from paraloop_core import design as design_mod
+from paraloop_core import dq, pipeline, poly
+from paraloop_core.design import Design, Pose
+from paraloop_core.errors import DesignFileError, ParaloopError, RealizationError
+
+from .exports import export_files
+from .panels import Panels
+from .plots import Plots
+from .scene import SceneView, design_scale
+from .state import StudioState, autosave_path_for
+from .worker import FRAME, FULL, PREVIEW, NewestWorker
+
+EXAMPLES = Path(__file__).resolve().parent.parent / "assets" / "designs"
+HAS_SELECTION = importlib.util.find_spec("paraloop_core.selection") is not None
+HAS_REALIZE = importlib.util.find_spec("paraloop_core.realize") is not None
+CACHE_SIZE = 16
+
+
+class Studio:
+    """The studio bound to one viser server (several browser tabs share it)."""
+
+    def __init__(self, server: viser.ViserServer, design: Design,
+                 autosave_path: Path | None = None) -> None:
+        self.server = server
+        self.state = StudioState(design, autosave_path)
+        self.solution: pipeline.Solution | None = None  # last valid solution (on screen)
+        self.error: str | None = None  # why the current design has no solution
+        self.downloads: list[tuple[str, bytes]] = []
+        self.notifications: list[tuple[str, str, bool]] = []
+        self.timings: dict[int, list[float]] = {PREVIEW: [], FULL: [], FRAME: []}
+        self._need_sync = True
+        self._drawn = (-1, -1)  # (version, level) of the design on screen
+        self._progress: list[Any] = []
+        self._cache: OrderedDict[str, tuple[pipeline.Solution, str]] = OrderedDict()
+        self.scene = SceneView(server, self._on_gizmo)
+        self.panels = Panels(server, self, criteria=HAS_SELECTION, realization=HAS_REALIZE)
+        self.plots = Plots(server)
+        self.worker = NewestWorker(self._job, on_slow=self._slow, on_slow_done=self._slow_done)
+        self._stop = threading.Event()
+        self._player = threading.Thread(target=self._play, name="studio-player", daemon=True)
+        self._player.start()
+        self.request(FULL, sync=True)
+
+    # --- requests from handlers -------------------------------------------------------------
+    def request(self, level: int, sync: bool = False) -> None:
+        """Ask the worker for an update; ``sync`` also rewrites gizmos and widgets."""
+        if sync:
+            self._need_sync = True
+        self.worker.request(level)
+
+    def _on_gizmo(self, i: int, event: viser.TransformControlsEvent) -> None:
+        if event.phase == "start":
+            return
+        end = event.phase == "end"
+        g = event.target
+        if self.state.move_pose(i, g.position, g.wxyz, commit=end):
+            self.request(FULL if end else PREVIEW)
+        elif end:  # a locked target: snap the gizmo back
+            self.request(FULL, sync=True)
+
+    def new_pose(self) -> Pose:
+        """A pose for "Add pose": on the motion, halfway across the largest visiting gap."""
+        design, sol = self.state.design, self.solution
+        if sol is None or len(sol.pose_parameters) != len(design.poses):
+            last = design.poses[-1]
+            return Pose(last.position + 0.1 * design_scale(design), last.wxyz.copy())
+        u = np.sort(poly.t_to_param(sol.pose_parameters))
+        gaps = np.diff(np.append(u, u[0] + 1.0))
+        k = int(np.argmax(gaps))
+        pos, wxyz = dq.to_pos_wxyz(poly.evaluate_pose(
+            sol.motion, poly.param_to_t((u[k] + 0.5 * gaps[k]) % 1.0)))
+        return Pose(pos, wxyz)
+
+    # --- files ------------------------------------------------------------------------------
+    def _send(self, event: Any, name: str, data: bytes) -> None:
+        self.downloads.append((name, data))
+        del self.downloads[:-10]
+        if event is not None and event.client is not None:
+            event.client.send_file_download(name, data, save_immediately=True)
+
+    def download_design(self, event: Any) -> None:
+        design = self.state.design
+        slug = "".join(c if c.isalnum() or c in "-_" else "-" for c in design.name)[:60]
+        data = json.dumps(design_mod.design_to_dict(design), indent=2) + "\n"
+        self._send(event, f"{slug.strip('-') or 'design'}.json", data.encode("utf-8"))
+
+    def download_export(self, event: Any) -> None:
+        sol = self.solution
+        if sol is None:
+            self.notify("Nothing to export", self.error or "no solution yet", error=True)
+            return
+        if self.error:
+            self.notify("Exporting the last valid design", self.error, error=True)
+        for name, data in export_files(sol):
+            self._send(event, name, data)
+
+    def upload_design(self, event: Any) -> None:
+        upload = event.target.value
+        try:
+            try:
+                data = json.loads(upload.content.decode("utf-8"))
+            except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+                raise DesignFileError("file", f"not valid JSON ({exc})") from exc
+            design = design_mod.design_from_dict(data)
+        except DesignFileError as exc:
+            self.notify(f"Cannot load {upload.name}", f"{exc} (the design is unchanged)",
+                        error=True)
+            return
+        self.state.commit(design)
+        self.request(FULL, sync=True)
+        self.notify("Design loaded", upload.name)
+
+    # --- feedback ---------------------------------------------------------------------------
+    def notify(self, title: str, body: str, error: bool = False) -> None:
+        """Show a notification in every open page (errors stay longer)."""
+        self.notifications.append((title, body, error))
+        del self.notifications[:-50]
+        for client in self.server.get_clients().values():
+            client.add_notification(title, body, color="red" if error else "blue",
+                                    auto_close_seconds=15.0 if error else 5.0)
+
+    def _slow(self) -> None:
+        self._progress = [c.add_notification("Computing…", "updating the design", loading=True,
+                                             with_close_button=False)
+                          for c in self.server.get_clients().values()]
+
+    def _slow_done(self) -> None:
+        for handle in self._progress:
+            handle.remove()
+        self._progress = []
+
+    # --- the worker's job -------------------------------------------------------------------
+    def _job(self, level: int) -> None:
+        try:
+            self._update(level)
+        except Exception as exc:  # a bug, not bad input: keep serving and say so
+            traceback.print_exc()
+            self.notify("Internal error", f"{exc!r} (see the server log)", error=True)
+
+    def _update(self, level: int) -> None:
+        start = time.perf_counter()
+        design, version = self.state.snapshot()
+        sync, self._need_sync = self._need_sync, False
+        if sync:
+            with self.server.atomic():
+                self.scene.set_targets(design)
+                self.panels.sync(design)
+        stale = version != self._drawn[0] or level > self._drawn[1]
+        if level >= PREVIEW and stale:
+            self._solve_and_draw(design, version, level)
+        else:
+            with self.server.atomic():
+                self.scene.draw_frame(self.state.u, self.state.thickness)
+                self.scene.apply_layers(self.state.hidden)
+        key = level if level >= PREVIEW and stale else FRAME
+        self.timings[key].append(time.perf_counter() - start)
+        if level == FULL:
+            try:
+                self.state.autosave()
+            except OSError as exc:
+                self.panels.status.content = f"**Status:** autosave failed: {exc}"
+
+    def _solve(self, design: Design, full: bool) -> tuple[pipeline.Solution, str]:
+        """Solve ``design`` (full updates are cached, so undo/redo is instant); a preview skips
+        the realization and reuses the last mu instead of re-running a criterion's scan."""
+        if not full:
+            m = design.motion
+            if m.criterion is not None and self.solution is not None:
+                motion = dataclasses.replace(m, criterion=None, mu=self.solution.mu)
+                design = dataclasses.replace(design, motion=motion)
+            return pipeline.solve(design, realize=False), ""
+        data = design_mod.design_to_dict(design)
+        del data["name"], data["locked"]  # neither changes the solution
+        key = json.dumps(data, sort_keys=True)
+        if key not in self._cache:
+            try:
+                self._cache[key] = (pipeline.solve(design, realize=HAS_REALIZE), "")
+            except RealizationError as exc:
+                self._cache[key] = (pipeline.solve(design, realize=False),
+                                    f"No realization: {exc}")
+            while len(self._cache) > CACHE_SIZE:
+                self._cache.popitem(last=False)
+        self._cache.move_to_end(key)
+        sol, note = self._cache[key]
+        return dataclasses.replace(sol, design=design), note
+
+    def _solve_and_draw(self, design: Design, version: int, level: int) -> None:
+        full = level == FULL
+        t0 = time.perf_counter()
+        try:
+            sol, note = self._solve(design, full)
+        except ValueError as exc:  # ParaloopError and other bad input
+            self.error = str(exc)
+            self._drawn = (version, level)
+            shown = "the last valid design is shown" if self.solution else "nothing to show"
+            self.panels.status.content = f"**Status:** ⚠ {exc} ({shown})"
+            if full:
+                self.notify("Cannot solve the design", f"{exc} ({shown})", error=True)
+            return
+        if note:
+            self.notify("No collision-free realization", note, error=True)
+        ms = 1e3 * (time.perf_counter() - t0)
+        self.solution, self.error, self._drawn = sol, None, (version, level)
+        with self.server.atomic():
+            self.scene.draw_motion(sol)
+            self.scene.draw_factorizations(sol)
+            self.scene.set_loop(sol)
+            self.scene.draw_frame(self.state.u, self.state.thickness)
+            self.scene.apply_layers(self.state.hidden)
+            if full:
+                self.panels.show_solution(sol)
+                self.plots.update(sol)
+        if full and not note:
+            note = realization_note(sol)
+        kind = "full update" if full else "preview"
+        self.panels.status.content = f"**Status:** ok ({kind} {ms:.0f} ms). {note}"
+
+    def _play(self) -> None:
+        last = time.monotonic()
+        while not self._stop.wait(1.0 / 30.0):
+            now = time.monotonic()
+            dt, last = now - last, now
+            if self.state.playing:
+                self.state.u = (self.state.u + self.state.speed * dt) % 1.0
+                self.panels.set_u(round(self.state.u, 3))
+                self.worker.request(FRAME)
+
+    def close(self) -> None:
+        self._stop.set()
+        self._player.join(timeout=2.0)
+        self.worker.close()
+
+
+def realization_note(sol: pipeline.Solution) -> str:
+    """One status line about the realization of the selected loop."""
+    real = sol.realization
+    if real is None:
+        return "" if sol.design.realization.enabled else "Realization: off."
+    return (f"Realized loop {sol.design.loop}: bar radius {real.radius:.3g}, "
+            f"min clearance {real.min_clearance:.3g}.")
+
+
+def restore_autosave(studio: Studio, design_path: Path | None) -> str | None:
+    """Load the autosave if it is newer than the opened file; the file's version stays one
+    undo step away. Returns a message when something was restored."""
+    path = studio.state.autosave_path
+    if path is None or not path.exists():
+        return None
+    if design_path is not None and path.stat().st_mtime <= design_path.stat().st_mtime:
+        return None
+    try:
+        design = design_mod.load_design(path)
+    except DesignFileError as exc:
+        return f"ignored a broken autosave {path}: {exc}"
+    studio.state.commit(design)
+    studio.request(FULL, sync=True)
+    return f"restored unsaved work from {path} (Undo returns to the opened file)"
+
+
+def default_design_path() -> Path:
+    """The first example design in ``assets/designs``."""
+    found = sorted(EXAMPLES.glob("*.json"))
+    if not found:
+        raise DesignFileError("file", f"no example designs in {EXAMPLES}")
+    return found[0]
+
+
+def run_studio(design_path: str | Path | None, host: str = "127.0.0.1", port: int = 8080) -> int:
+    """Serve the studio until SIGINT/SIGTERM; prints the URL."""
+    opened = Path(design_path) if design_path is not None else None
+    path = opened or default_design_path()
+    design = design_mod.load_design(path)
+    server = viser.ViserServer(host=host, port=port, verbose=False)
+    autosave = autosave_path_for(opened, design.name)
+    studio = Studio(server, design, autosave)
+    stop = threading.Event()
+    signal.signal(signal.SIGINT, lambda *_: stop.set())
+    signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    message = restore_autosave(studio, path if opened else None)
+    if message:
+        print(message)
+    print(f"paraloop studio: {design.name} ({path}); autosave: {autosave}")
+    print(f"open http://{host}:{server.get_port()}/", flush=True)
+    try:
+        while not stop.wait(0.5):
+            pass
+    finally:
+        studio.close()
+        server.stop()
+    return 0
+
+
+def register(subparsers: Any) -> None:
+    """Add the ``studio`` sub-command to the ``paraloop`` CLI."""
+    p = subparsers.add_parser("studio", help="open the design studio in the browser")
+    p.add_argument("design", nargs="?", help="design JSON (default: an example design)")
+    p.add_argument("--host", default="127.0.0.1", help="interface to serve on")
+    p.add_argument("--port", type=int, default=8080, help="port (0 picks a free one)")
+    p.set_defaults(func=lambda args: run_studio(args.design, args.host, args.port))
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m app.studio [DESIGN] [--host H] [--port N]``."""
+    parser = argparse.ArgumentParser(prog="paraloop studio")
+    sub = parser.add_subparsers(dest="command")
+    register(sub)
+    args = parser.parse_args(["studio", *(sys.argv[1:] if argv is None else argv)])
+    try:
+        return int(args.func(args))
+    except ParaloopError as exc:  # a bad design file: one line, like the paraloop CLI
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())
