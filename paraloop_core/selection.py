@@ -16,10 +16,9 @@ where the family degenerates (:func:`fourpose.bad_mu_mask`) or the cubic is not 
   in u miss fast parts (a factor with small r turns fully within ``|t - h0| ~ r``) and
   underestimate the length there, which a minimization then seeks out.
 * ``"extra-poses"``: ``poses`` ``(E, 8)`` world poses, ``inertia``; score = sum over the poses
-  of the squared metric distance to the closest pose of the motion, computed exactly (MATH
-  section 8 (2a)): critical points are the roots of ``Q'N - QN'`` (degree <= 10) plus
-  ``t = inf``; the real parts of *all* ten roots are tested, so a real root misread as complex
-  cannot be missed and the minimum is exact up to round-off of the eigenvalue root finder.
+  of the squared metric distance to the closest pose of the motion: critical points of MATH
+  section 8 (2a) plus motion-adapted samples, polished on the distance (see
+  :func:`_closest_distance_sq`; never above a 20001-sample scan in tests).
 
 The metric is left invariant, so length and pose distances are computed in the S_0 frame.
 """
@@ -28,7 +27,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import dq, factor, loops, metric, poly
+from . import closest, dq, factor, loops, metric, poly
 from .errors import NonGenericMotionError
 from .fourpose import FourPoseFamilies, bad_mu_mask, four_pose_motion_batch, world_motion
 
@@ -54,67 +53,60 @@ def _check_params(criterion: str, params: dict) -> None:
         raise ValueError(f"criterion {criterion!r} needs inertia=metric.Inertia(...)")
 
 
-def _realpoly_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Product of real polynomials ``(..., m+1) x (..., n+1) -> (..., m+n+1)``, ascending."""
-    m, n = a.shape[-1] - 1, b.shape[-1] - 1
-    out = np.zeros(np.broadcast_shapes(a.shape[:-1], b.shape[:-1]) + (m + n + 1,))
-    for i in range(m + 1):  # loop over the (tiny) degree, not over data
-        out[..., i : i + n + 1] += a[..., i, None] * b
-    return out
+def _adaptive_t(quads: np.ndarray, per_factor: int) -> np.ndarray:
+    """Sorted parameters ``(M, 3 per_factor)`` where each norm factor ``(t - h0)^2 + r^2``
+    (``quads`` ``(M, 3, 2)``) turns by equal angles: ``t = h0 + r cot(pi (j + 1/2) / k)``."""
+    h0 = -0.5 * quads[..., 1:]
+    r = np.sqrt(np.maximum(quads[..., :1] - h0**2, 0.0))
+    t = h0 + r / np.tan(np.pi * (np.arange(per_factor) + 0.5) / per_factor)
+    return np.sort(t.reshape(len(quads), -1), axis=-1)
 
 
-def _metric_rows(inertia: metric.Inertia) -> np.ndarray:
-    """``W`` ``(13, 8)`` with ``|W G|^2`` the bracket of :func:`metric.distance_sq` for ``G``."""
-    def cross_matrix(v: np.ndarray) -> np.ndarray:  # x -> x cross v
-        return -np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+def _closest_distance_sq(c: np.ndarray, quads: np.ndarray, targets: np.ndarray,
+                         inertia: metric.Inertia) -> np.ndarray:
+    """``min_t dist^2(C(t), X)`` ``(M, E)`` for motions ``(M, n+1, 8)`` with norm factors
+    ``quads`` and targets ``(E, 8)`` (same frame).
 
-    w = np.zeros((13, 8))
-    w[0, 4] = 1.0  # g0'
-    w[1:4, 5:8] = np.eye(3)  # g' + g x c
-    w[1:4, 1:4] = cross_matrix(inertia.center)
-    scale = inertia.weight * inertia.semi_axes / np.sqrt(3.0)
-    for k in range(3):  # (w a_k / sqrt 3) g x e_k
-        w[4 + 3 * k : 7 + 3 * k, 1:4] = scale[k] * cross_matrix(inertia.axes[k])
-    return w
-
-
-def closest_pose_distance_sq(c: np.ndarray, targets: np.ndarray,
-                             inertia: metric.Inertia) -> tuple[np.ndarray, np.ndarray]:
-    """Exact ``min_t dist^2(C(t), X)`` and its ``t`` ``(..., E)`` for motions ``c`` ``(..., n+1,
-    8)`` and unit target poses ``targets`` ``(E, 8)`` in the same frame (t may be inf)."""
-    c = np.asarray(c, dtype=np.float64)[..., None, :, :]
-    x = dq.normalize(np.asarray(targets, dtype=np.float64))[:, None, :]
-    g = dq.mul(dq.conj(x), c)  # (..., E, n+1, 8): G(t) = X~ C(t)
-    wg = np.einsum("rl,...kl->...rk", _metric_rows(inertia), g)
-    q = 4.0 * np.sum(_realpoly_mul(wg, wg), axis=-2)  # (..., E, 2n+1)
-    nrm = poly.norm_poly(g)
-    deg = q.shape[-1] - 1
-    ks = np.arange(1, deg + 1)
-    crit = (_realpoly_mul(q[..., 1:] * ks, nrm) - _realpoly_mul(q, nrm[..., 1:] * ks))[..., :-1]
-    # The t^(4n-1) term cancels identically (dropped); guard a vanishing leading coefficient
-    # (degree drop = roots at infinity) by a tiny value, which only adds huge spurious roots.
-    size = np.abs(crit).max(axis=-1, keepdims=True)
-    tiny = 1e-14 * np.maximum(size, 1e-300)
+    Candidates: the real parts of all roots of :func:`closest.critical_polynomial` (MATH
+    section 8 (2a), exact in exact arithmetic), ``t = inf``, and 96 motion-adapted samples
+    (:func:`_adaptive_t`): the monomial-basis critical polynomial is ill-conditioned when
+    roots cluster or the visiting parameters are large (seen: errors of 1e-3 in t, and roots
+    lost entirely with parameters ~1e4). The three best candidates are polished on the
+    distance itself by parabola steps in ``u`` of shrinking width (1e-3 .. 1e-7), each kept
+    only if it lowers the value, so t is accurate to ~1e-7 in u within the found basin.
+    """
+    crit = closest.critical_polynomial(c[:, None], targets, inertia)  # (M, E, 4n-1)
+    # only an (almost) exactly vanishing leading coefficient is replaced: moves no root
+    tiny = 1e-30 * np.abs(crit).max(axis=-1, keepdims=True) + 1e-300
     lead = crit[..., -1:]
     crit[..., -1:] = np.where(np.abs(lead) < tiny, np.where(lead < 0, -tiny, tiny), lead)
-    cand = np.concatenate([poly.real_poly_roots(crit).real,
+    samples = np.broadcast_to(_adaptive_t(quads, 32)[:, None], crit.shape[:-1] + (96,))
+    cand = np.concatenate([poly.real_poly_roots(crit).real, samples,
                            np.full(crit.shape[:-1] + (1,), np.inf)], axis=-1)
-    vals = metric.distance_sq(x, poly.evaluate_pose(c[..., None, :, :], cand), inertia)
-    best = np.argmin(vals, axis=-1)[..., None]
-    return (np.take_along_axis(vals, best, -1)[..., 0],
-            np.take_along_axis(cand, best, -1)[..., 0])
+    f = metric.distance_sq(targets[:, None], poly.evaluate_pose(c[:, None, None], cand), inertia)
+    k = np.argsort(f, axis=-1)[..., :3]
+    u = poly.t_to_param(np.take_along_axis(cand, k, -1))
+    best = np.take_along_axis(f, k, -1)  # (M, E, 3)
+    for h in (1e-3, 3e-4, 1e-4, 3e-5, 1e-5, 1e-6, 1e-7):
+        ut = np.stack([u - h, u + h], axis=-1)
+        fl, fr = metric.distance_sq(targets[:, None, None], poly.evaluate_pose(
+            c[:, None, None, None], poly.param_to_t(ut)), inertia).transpose(3, 0, 1, 2)
+        curv = fl - 2.0 * best + fr
+        step = np.where(curv > 0, 0.5 * h * (fl - fr) / np.where(curv > 0, curv, 1.0), 0.0)
+        un = u + np.clip(step, -h, h)
+        fn = metric.distance_sq(targets[:, None], poly.evaluate_pose(
+            c[:, None, None], poly.param_to_t(un)), inertia)
+        u, best = np.where(fn < best, un, u), np.minimum(fn, best)
+    return best.min(axis=-1)
 
 
 def _cycle_length(c: np.ndarray, quads: np.ndarray, inertia: metric.Inertia,
                   samples: int) -> np.ndarray:
     """Chord-sum length ``(M,)`` of cubics ``c`` ``(M, 4, 8)`` with norm factors ``quads``
-    ``(M, 3, 2)`` over angle-uniform samples of each factor (see the module docstring)."""
+    ``(M, 3, 2)`` over :func:`_adaptive_t` samples and ``t = inf``."""
     if not (isinstance(samples, int) and samples >= 24):
         raise ValueError(f"samples must be an int >= 24, got {samples!r}")
-    k = samples // 3
-    h0 = -0.5 * quads[..., 1:]
-    r = np.sqrt(np.maximum(quads[..., :1] - h0**2, 0.0))
-    t = np.sort((h0 + r / np.tan(np.pi * (np.arange(k) + 0.5) / k)).reshape(len(c), -1), -1)
+    t = _adaptive_t(quads, samples // 3)
     inf = np.full((len(c), 1), np.inf)
     poses = poly.evaluate_pose(c[:, None], np.concatenate([inf, t, inf], axis=-1))
     return np.sum(np.sqrt(metric.distance_sq(poses[:, :-1], poses[:, 1:], inertia)), -1)
@@ -165,7 +157,8 @@ def score_mu(fams: FourPoseFamilies, family: int, mus: np.ndarray, criterion: st
                     np.isfinite(poses)) or np.any(np.linalg.norm(poses[:, :4], axis=1) == 0):
                 raise ValueError("poses must be a finite (E >= 1, 8) array of poses")
             targets = dq.mul(dq.inv(fams.poses[0]), poses)
-            score = np.sum(closest_pose_distance_sq(c_rel, targets, inertia)[0], axis=-1)
+            score = np.sum(_closest_distance_sq(c_rel, facts.quadratics,
+                                                dq.normalize(targets), inertia), -1)
     out[ok] = np.where(code == 0, score, np.inf)
     return out
 
