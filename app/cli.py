@@ -11,7 +11,7 @@ import json
 import sys
 from pathlib import Path
 
-from app import export_cmd, studio, validate_realization
+from app import export_cmd, studio, validate_evolution, validate_realization
 from paraloop_core import design as design_mod
 from paraloop_core import pipeline
 from paraloop_core.errors import ParaloopError
@@ -74,7 +74,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 _COMMAND_MODULES: list = [studio, export_cmd]
-_VALIDATE_MODULES: list = [validate_realization]
+_VALIDATE_MODULES: list = [validate_realization, validate_evolution]
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -168,7 +168,8 @@ def transform_lines(q: np.ndarray, lines: np.ndarray) -> np.ndarray:
 
 
 def from_pos_wxyz(position: np.ndarray, wxyz: np.ndarray) -> np.ndarray:
-    """Unit pose ``(..., 8)`` from a position ``(..., 3)`` and a ``wxyz`` quaternion ``(..., 4)``."""
+    """Unit pose ``(..., 8)`` from a position ``(..., 3)`` and a ``wxyz`` quaternion ``(..., 4)``.
+    """
     position = np.asarray(position, dtype=np.float64)
     wxyz = np.asarray(wxyz, dtype=np.float64)
     if position.shape[-1:] != (3,) or wxyz.shape[-1:] != (4,):

@@ -1,4 +1,5 @@
-"""Exceptions with a machine-readable ``reason``; all are ``ValueError`` (bad or degenerate input)."""
+"""Exceptions with a machine-readable ``reason``; all are ``ValueError`` (bad or degenerate
+input)."""
 
 from __future__ import annotations
 

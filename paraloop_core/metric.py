@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import dq, poly
+from . import dq, factor, poly
 
 
 @dataclass(frozen=True)
@@ -102,14 +102,21 @@ def distance_sq(s1: np.ndarray, s2: np.ndarray, inertia: Inertia) -> np.ndarray:
     return 4.0 * bracket / np.sum(g[..., :4] ** 2, -1)
 
 
-def motion_length(c: np.ndarray, inertia: Inertia, samples: int = 512) -> np.ndarray:
+def motion_length(c: np.ndarray, inertia: Inertia, samples: int = 192) -> np.ndarray:
     """Length ``(...)`` of the closed motion cycle of ``C`` ``(..., n+1, 8)`` under the metric.
 
-    Approximation: chord sum over ``samples`` equally spaced ``u`` (a lower bound of the arc
-    length; relative error O(1/samples^2) for smooth motions).
+    Approximation: chord sum (a lower bound of the arc length) over ``samples`` parameters
+    adapted to the motion (:func:`poly.cycle_parameters` of the norm factors) plus ``t = inf``;
+    relative error about 1e-3 at the default for generic cubics.
     """
-    if samples < 8:
-        raise ValueError("motion_length needs at least 8 samples")
-    t = poly.param_to_t(np.linspace(0.0, 1.0, samples + 1))
-    poses = poly.evaluate_pose(np.asarray(c, float)[..., None, :, :], t)  # (..., K+1, 8)
+    c = np.asarray(c, dtype=np.float64)
+    n = c.shape[-2] - 1
+    if samples < 8 * n:
+        raise ValueError(f"motion_length needs at least {8 * n} samples, got {samples}")
+    quads, _ = factor.norm_quadratics_batch(c)
+    h0 = -0.5 * quads[..., 1]
+    r = np.sqrt(np.maximum(quads[..., 0] - h0**2, 0.0))
+    t = poly.cycle_parameters(h0, r, samples // n)
+    inf = np.full(t.shape[:-1] + (1,), np.inf)
+    poses = poly.evaluate_pose(c[..., None, :, :], np.concatenate([inf, t, inf], axis=-1))
     return np.sum(np.sqrt(distance_sq(poses[..., :-1, :], poses[..., 1:, :], inertia)), -1)

@@ -100,6 +100,15 @@ def t_to_param(t: np.ndarray) -> np.ndarray:
     return np.where(np.isinf(t), 0.0, np.arctan(t) / np.pi + 0.5)
 
 
+def cycle_parameters(h0: np.ndarray, r: np.ndarray, per_factor: int) -> np.ndarray:
+    """Sorted parameters ``(..., n per_factor)`` adapted to a motion with norm factors
+    ``(t - h0)^2 + r^2`` (``h0``, ``r`` ``(..., n)``): where each factor's rotation angle is
+    uniform, ``t = h0 + r cot(pi (j + 1/2) / per_factor)``. Uniform samples in u miss the fast
+    parts of a cycle (a factor with small r turns fully within ``|t - h0| ~ r``)."""
+    t = h0[..., None] + r[..., None] / np.tan(np.pi * (np.arange(per_factor) + 0.5) / per_factor)
+    return np.sort(t.reshape(t.shape[:-2] + (-1,)), axis=-1)
+
+
 def norm_poly(c: np.ndarray) -> np.ndarray:
     """Norm polynomial ``N = C C~`` (its real part) ``(..., 2n+1)``, ascending."""
     p = c[..., :4]
@@ -128,7 +137,8 @@ def is_motion_polynomial(c: np.ndarray, rtol: float = 1e-9) -> np.ndarray:
 
 
 def make_monic(c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``(monic, lead)`` with ``C = lead * monic``; raises if the leading coefficient is singular."""
+    """``(monic, lead)`` with ``C = lead * monic``; raises if the leading coefficient is
+    singular."""
     c = as_poly(c)
     lead = c[..., -1, :]
     pn = np.linalg.norm(lead[..., :4], axis=-1)
@@ -142,7 +152,8 @@ def make_monic(c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def right_divide_linear(c: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``C = Q (t - h) + r``: returns ``(Q (..., n, 8), r (..., 8))``, ``r = C(h)`` (right value)."""
+    """``C = Q (t - h) + r``: returns ``(Q (..., n, 8), r (..., 8))`` with the right value
+    ``r = C(h)``."""
     n = c.shape[-2] - 1
     q = [None] * n
     q[n - 1] = c[..., n, :]
@@ -153,7 +164,7 @@ def right_divide_linear(c: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, np.nd
 
 
 def mod_quadratic(c: np.ndarray, m: np.ndarray) -> np.ndarray:
-    """Remainder ``(..., 2, 8)`` of ``C`` modulo ``t^2 + m1 t + m0``; ``m`` is ``(..., 2)=[m0, m1]``.
+    """Remainder ``(..., 2, 8)`` of ``C`` modulo ``t^2 + m1 t + m0``, ``m`` ``(..., 2)=[m0, m1]``.
 
     M is real hence central, so left and right remainders agree.
     """

@@ -54,12 +54,9 @@ def _check_params(criterion: str, params: dict) -> None:
 
 
 def _adaptive_t(quads: np.ndarray, per_factor: int) -> np.ndarray:
-    """Sorted parameters ``(M, 3 per_factor)`` where each norm factor ``(t - h0)^2 + r^2``
-    (``quads`` ``(M, 3, 2)``) turns by equal angles: ``t = h0 + r cot(pi (j + 1/2) / k)``."""
-    h0 = -0.5 * quads[..., 1:]
-    r = np.sqrt(np.maximum(quads[..., :1] - h0**2, 0.0))
-    t = h0 + r / np.tan(np.pi * (np.arange(per_factor) + 0.5) / per_factor)
-    return np.sort(t.reshape(len(quads), -1), axis=-1)
+    """:func:`poly.cycle_parameters` ``(M, 3 per_factor)`` of norm factors ``(M, 3, 2)``."""
+    h0 = -0.5 * quads[..., 1]
+    return poly.cycle_parameters(h0, np.sqrt(np.maximum(quads[..., 0] - h0**2, 0.0)), per_factor)
 
 
 def _closest_distance_sq(c: np.ndarray, quads: np.ndarray, targets: np.ndarray,
@@ -100,18 +97,6 @@ def _closest_distance_sq(c: np.ndarray, quads: np.ndarray, targets: np.ndarray,
     return best.min(axis=-1)
 
 
-def _cycle_length(c: np.ndarray, quads: np.ndarray, inertia: metric.Inertia,
-                  samples: int) -> np.ndarray:
-    """Chord-sum length ``(M,)`` of cubics ``c`` ``(M, 4, 8)`` with norm factors ``quads``
-    ``(M, 3, 2)`` over :func:`_adaptive_t` samples and ``t = inf``."""
-    if not (isinstance(samples, int) and samples >= 24):
-        raise ValueError(f"samples must be an int >= 24, got {samples!r}")
-    t = _adaptive_t(quads, samples // 3)
-    inf = np.full((len(c), 1), np.inf)
-    poses = poly.evaluate_pose(c[:, None], np.concatenate([inf, t, inf], axis=-1))
-    return np.sum(np.sqrt(metric.distance_sq(poses[:, :-1], poses[:, 1:], inertia)), -1)
-
-
 def _axis_score(c_world: np.ndarray, axes_idx: tuple[int, int], params: dict) -> tuple:
     points = np.asarray(params.get("points"), dtype=np.float64)
     if points.shape != (2, 3) or not np.all(np.isfinite(points)):
@@ -150,7 +135,7 @@ def score_mu(fams: FourPoseFamilies, family: int, mus: np.ndarray, criterion: st
         facts = factor.all_factorizations_batch(c_rel)  # conjugation keeps genericity
         code, inertia = facts.code, params["inertia"]
         if criterion == "length":
-            score = _cycle_length(c_rel, facts.quadratics, inertia, params.get("samples", 192))
+            score = metric.motion_length(c_rel, inertia, params.get("samples", 192))
         else:
             poses = np.asarray(params.get("poses"), dtype=np.float64)
             if poses.ndim != 2 or poses.shape[1] != 8 or len(poses) == 0 or not np.all(

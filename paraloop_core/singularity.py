@@ -180,10 +180,9 @@ def _cycle_samples(jf: np.ndarray, per_factor: int) -> np.ndarray:
     ``(t - h0)^2 + r^2``)
     the t where its rotation angle is uniform, ``t = h0 + r cot(pi (j + 1/2) / k)``, and
     ``u = 0`` (t = inf). Fast parts of the cycle (small r) get their share of samples."""
-    h0 = jf[..., :3, 0, None]
-    r = np.linalg.norm(jf[..., :3, 1:4], axis=-1)[..., None]
-    t = h0 + r / np.tan(np.pi * (np.arange(per_factor) + 0.5) / per_factor)
-    u = poly.t_to_param(t.reshape(t.shape[:-2] + (-1,)))
+    t = poly.cycle_parameters(jf[..., :3, 0], np.linalg.norm(jf[..., :3, 1:4], axis=-1),
+                              per_factor)
+    u = poly.t_to_param(t)
     return np.sort(np.concatenate([np.zeros(u.shape[:-1] + (1,)), u], axis=-1), axis=-1)
 
 

@@ -14,7 +14,7 @@ def test_nine_loops_three_angle_symmetric():
     assert len(loops.LOOP_PAIRS) == 9
     assert sum(loops.LOOP_IS_AS) == 3
     orders = factor.NORM_ORDERS
-    for (f, g), is_as in zip(loops.LOOP_PAIRS, loops.LOOP_IS_AS):
+    for (f, g), is_as in zip(loops.LOOP_PAIRS, loops.LOOP_IS_AS, strict=True):
         assert orders[f][0] != orders[g][0] and orders[f][2] != orders[g][2]
         assert is_as == bool(np.all(orders[g] == orders[f][::-1]))
         if not is_as:  # double Bennett: cyclic shift

@@ -23,7 +23,7 @@ def test_motion_visits_the_poses(tv8_result):
     d, res = tv8_result
     c = np.array(res["motion"]["coefficients"])
     targets = pipeline.design_poses(d)
-    for t, pose in zip(res["motion"]["pose_parameters"], targets):
+    for t, pose in zip(res["motion"]["pose_parameters"], targets, strict=True):
         at = poly.evaluate_pose(c, np.inf if t is None else t)
         assert np.allclose(dq.normalize(at), dq.normalize(pose), atol=1e-9)
     assert res["motion"]["pose_parameters"][0] is None
