@@ -1,0 +1,124 @@
+"""Export files, built-in verification, grounding and the ``paraloop export`` command."""
+
+from __future__ import annotations
+
+import argparse
+import io
+import json
+
+import numpy as np
+import pytest
+import trimesh
+from test_parts import example_assembly, example_loop
+
+from paraloop_core import fabrication, grounding, parts
+from paraloop_core.errors import FabricationError
+
+
+@pytest.fixture(scope="module")
+def exported() -> fabrication.ExportResult:
+    jf, pts, radius = example_loop()
+    return fabrication.export_parts(jf, pts, radius, spec=parts.PartSpec(size_mm=150.0))
+
+
+def test_export_files_and_watertight_parts(exported):
+    files = dict(exported.files)
+    assert set(files) == {f"link_{i}.stl" for i in range(6)} | {
+        "paraloop.3mf", "assembly.glb", "report.json"}
+    for i in range(6):
+        mesh = trimesh.load(io.BytesIO(files[f"link_{i}.stl"]), file_type="stl")
+        assert mesh.is_watertight and mesh.volume > 0
+    scene = trimesh.load(io.BytesIO(files["paraloop.3mf"]), file_type="3mf")
+    assert sorted(scene.geometry) == [f"link_{i}" for i in range(6)]
+    assert all(g.is_watertight for g in scene.geometry.values())
+    glb = trimesh.load(io.BytesIO(files["assembly.glb"]), file_type="glb")
+    assert len(glb.geometry) == 6
+
+
+def test_report_verifies_the_example(exported):
+    report = json.loads(dict(exported.files)["report.json"])
+    ver = report["verification"]
+    assert ver["ok"] and ver["watertight"] and ver["collisions"] == 0
+    assert ver["samples"] == 720 and len(ver["pairs"]) == 15
+    assert 0 < ver["continuous_min_gap_mm"] <= ver["min_gap_mm"]
+    clearance = report["spec"]["clearance_mm"]
+    assert ver["joint_clearance_mm"] == pytest.approx(clearance, abs=0.02)
+    assert report["grounding"]["certified_clearance_mm"] > 0
+    assert report["scale_mm_per_unit"] > 0
+
+
+def test_verification_finds_collisions():
+    """Fat bars (far beyond the realized radius) must be reported as colliding."""
+    jf, pts, radius = example_loop()
+    asm = parts.build_assembly(jf, pts, radius, parts.PartSpec(rho_mm=25.0, boss_radius_mm=26.0))
+    ver = fabrication.verify_assembly(asm, samples=24)
+    assert not ver["ok"]
+    assert ver["collisions"] > 0 and ver["min_gap_mm"] == 0.0
+    worst = max(ver["pairs"], key=lambda p: p["max_intersection_mm3"])
+    assert worst["max_intersection_mm3"] > 0
+
+
+def test_verification_refines_fast_cells():
+    """Few samples: cells whose motion bound exceeds the gap are subdivided until certified."""
+    ver = fabrication.verify_assembly(example_assembly(False), samples=16)
+    assert ver["ok"]
+    assert ver["max_pair_samples"] > 16
+
+
+def test_export_design_parts_and_progress():
+    jf, pts, radius = example_loop()
+    seen = []
+    files = fabrication.export_design_parts(jf, pts, radius, ground=False, samples=64,
+                                            progress=lambda f, m: seen.append(f))
+    assert [n for n, _ in files][-1] == "report.json"
+    assert all(isinstance(b, bytes) and b for _, b in files)
+    assert seen and seen[-1] == pytest.approx(1.0) and np.all(np.diff(seen) >= -1e-12)
+
+
+def test_grounding_column():
+    jf, pts, radius = example_loop()
+    g = grounding.ground_column(jf, pts, bar_radius=radius, hub_radius=radius,
+                                hub_extent=0.0)
+    assert g.axis == 0 and g.clearance > 0 and g.sampled_clearance >= g.clearance
+    assert g.bottom[2] == pytest.approx(g.ground_z)
+    with pytest.raises(FabricationError) as err:  # A_0 points straight down, so ground above
+        grounding.ground_column(jf, pts, bar_radius=radius, hub_radius=radius,
+                                hub_extent=0.0, axis=0, ground_z=float(pts[:, 2].max()) + 1)
+    assert err.value.reason == "grounding"
+    with pytest.raises(FabricationError):
+        grounding.ground_column(jf, pts, bar_radius=-1.0, hub_radius=radius, hub_extent=0.0)
+
+
+def test_cli_export(tmp_path):
+    from app import export_cmd
+
+    parser = argparse.ArgumentParser()
+    export_cmd.register(parser.add_subparsers())
+    args = parser.parse_args(["export", "assets/designs/sun-disc.json", "--out", str(tmp_path),
+                              "--size-mm", "500", "--no-ground", "--samples", "90", "--quiet"])
+    assert args.func(args) == 0
+    assert (tmp_path / "paraloop.3mf").stat().st_size > 0
+    assert json.loads((tmp_path / "report.json").read_text())["verification"]["ok"]
+    bad = parser.parse_args(["export", "assets/designs/sun-disc.json", "--out",
+                             str(tmp_path / "x"), "--clearance", "-1", "--quiet"])
+    assert bad.func(bad) == 1
+    assert not (tmp_path / "x").exists()
+
+
+def test_print_in_place_parts_verify():
+    ver = fabrication.verify_assembly(example_assembly(True), samples=90)
+    assert ver["ok"] and ver["printable"]
+    assert ver["joint_clearance_mm"] == pytest.approx(0.3, abs=0.02)
+
+
+def test_carved_parts_export_and_verify():
+    jf, pts, radius = example_loop()
+    res = fabrication.export_parts(jf, pts, radius, space_radius=3 * radius, resolution=56,
+                                   samples=32, ground=False)
+    ver = res.report["verification"]
+    assert ver["ok"] and ver["watertight"]
+    assert any(res.report["carving"]["meshed"])
+    # carved bodies are bigger than bare bars
+    bare = example_assembly(False)
+    assert sum(p["volume_mm3"] for p in ver["parts"]) > sum(
+        p.manifold.volume() for p in bare.parts)

@@ -1,0 +1,110 @@
+"""Printable parts: watertight manifolds, pins in bores with the clearance, refused parameters."""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+import pytest
+import trimesh
+from conftest import random_rotation_factors
+
+from paraloop_core import dq, factor, loops, parts, poly, realize
+from paraloop_core.errors import FabricationError
+
+
+@functools.lru_cache(maxsize=1)
+def example_loop() -> tuple[np.ndarray, np.ndarray, float]:
+    """A realized loop ``(joint_factors, points, radius)`` of a random generic cubic, rotated
+    so that its base link's axis A_0 points down (the grounding column goes there)."""
+    c = poly.from_factors(random_rotation_factors(np.random.default_rng(1)))
+    jf = loops.loop_joint_factors(factor.all_factorizations_batch(c).factors)[4]
+    r = realize.realize(jf, d_fraction=0.08, rho_fraction=0.25)
+    d = r.points[1] - r.points[2]
+    d /= np.linalg.norm(d)
+    axis = np.cross(d, [0.0, 0.0, -1.0])
+    g = dq.rotation_about_line(axis / np.linalg.norm(axis), np.zeros(3),
+                               np.arccos(np.clip(-d[2], -1.0, 1.0)))
+    jf2 = dq.mul(dq.mul(g, r.joint_factors), dq.conj(g))
+    return jf2, dq.transform_points(g, r.points), r.radius
+
+
+@functools.lru_cache(maxsize=2)
+def example_assembly(print_in_place: bool = False) -> parts.Assembly:
+    jf, pts, radius = example_loop()
+    return parts.build_assembly(jf, pts, radius, parts.PartSpec(print_in_place=print_in_place))
+
+
+def as_trimesh(man) -> trimesh.Trimesh:
+    mesh = man.to_mesh()
+    return trimesh.Trimesh(mesh.vert_properties[:, :3], mesh.tri_verts, process=True)
+
+
+@pytest.mark.parametrize("pip", [False, True])
+def test_parts_are_watertight_manifolds(pip):
+    asm = example_assembly(pip)
+    assert len(asm.parts) == 6
+    for p in asm.parts:
+        assert p.manifold.status() == parts.m3d.Error.NoError
+        tm = as_trimesh(p.manifold)
+        assert tm.is_watertight and tm.is_winding_consistent, p.name
+        assert tm.volume > 0
+        # each part lies in the union of its bounding capsules (broad phase of verification)
+        v = tm.vertices
+        d = np.min([parts.point_segment_distance(v, c[0], c[1]) - r
+                    for c, r in zip(p.capsules, p.radii, strict=True)], axis=0)
+        assert d.max() <= 1e-3
+
+
+@pytest.mark.parametrize("pip", [False, True])
+def test_pins_fit_bores_with_clearance(pip):
+    asm = example_assembly(pip)
+    spec = asm.spec
+    poly_err = (spec.pin_radius_mm + spec.clearance_mm) * (1 - np.cos(np.pi / spec.segments))
+    for j, z in enumerate(asm.zones):
+        lo, up = asm.parts[j], asm.parts[(j + 1) % 6]
+        # the pin of the lower link reaches through the upper link's boss ...
+        boss_up = parts.cylinder(z.at(z.length / 2 + spec.clearance_mm),
+                                 z.at(z.length + spec.boss_length_mm - 1e-3),
+                                 spec.pin_radius_mm * 0.99, spec.segments)
+        assert (lo.manifold ^ boss_up).volume() == pytest.approx(boss_up.volume(), rel=1e-3)
+        # ... without touching it: the gap is the clearance (up to the polygon error)
+        gap = lo.manifold.min_gap(up.manifold, 5.0)
+        assert spec.clearance_mm - poly_err - 1e-6 <= gap <= spec.clearance_mm + 1e-6
+        assert (lo.manifold ^ up.manifold).volume() < 1e-9
+
+
+def test_rotated_parts_stay_clear_at_joint():
+    """Turning a joint keeps the pin in its bore: the hardware is a solid of revolution."""
+    asm = example_assembly(False)
+    z = asm.zones[2]
+    lo, up = asm.parts[2], asm.parts[3]
+    for angle in (0.4, 1.7, 3.0):
+        turn = dq.to_matrix(dq.rotation_about_line(z.w, z.origin, angle))
+        moved = up.manifold.transform([list(r) for r in turn[:3]])
+        w = parts.zone_solid(z, asm.spec.segments)
+        assert (lo.manifold ^ w ^ moved).volume() < 1e-9
+
+
+def test_scale_sets_longest_extent():
+    jf, pts, radius = example_loop()
+    s = parts.design_scale(pts, 200.0)
+    assert np.ptp(pts * s, axis=0).max() == pytest.approx(200.0)
+
+
+@pytest.mark.parametrize("kwargs", [
+    {"clearance_mm": -0.1}, {"size_mm": 0.0}, {"size_mm": -5.0},
+    {"pin_radius_mm": 50.0}, {"rho_mm": 0.0}, {"boss_length_mm": -1.0}, {"segments": 3},
+])
+def test_bad_parameters_refused(kwargs):
+    jf, pts, radius = example_loop()
+    with pytest.raises(FabricationError) as err:
+        parts.build_assembly(jf, pts, radius, parts.PartSpec(**kwargs))
+    assert err.value.reason == "bad-parameters"
+    assert isinstance(err.value, ValueError)
+
+
+def test_too_small_size_says_what_to_do():
+    jf, pts, radius = example_loop()
+    with pytest.raises(FabricationError, match="size of at least"):
+        parts.build_assembly(jf, pts, radius, parts.PartSpec(size_mm=10.0))
