@@ -253,8 +253,20 @@ def design_from_dict(data: Any) -> Design:
         loop=loop,
         realization=_realization(d.get("realization", {})),
         locked=tuple(sorted(set(locked))),
-        evolution=dict(_obj(d.get("evolution", {}), "evolution")),
+        evolution=_evolution(d.get("evolution", {})),
     )
+
+
+def _evolution(v: Any) -> dict[str, Any]:
+    """Evolution settings stay JSON-native in the design; validated by building them once."""
+    from .evolution import evolution_settings  # local: the evolution stack is heavy
+
+    d = dict(_obj(v, "evolution"))
+    try:
+        evolution_settings(d)
+    except (TypeError, ValueError) as exc:
+        raise DesignFileError("evolution", str(exc)) from exc
+    return d
 
 
 def _pose_dict(p: Pose) -> dict[str, list[float]]:

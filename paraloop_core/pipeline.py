@@ -34,6 +34,7 @@ class Solution:
     singularity: np.ndarray  # (9,) min over the cycle of the singularity measure
     singularity_t: np.ndarray  # (9,) where the min occurs (inf allowed)
     realization: Any = None  # realize.Realization or None
+    fit: Any = None  # evolution.FitResult for method 'fit', else None
 
     @property
     def loop(self) -> loops.Loop:
@@ -79,17 +80,24 @@ def solve(design: Design, *, realize: bool = True) -> Solution:
     """Compute the solution of a design; raises ParaloopError subclasses (ValueError) with a
     clear message for degenerate poses, non-generic motions or failed realizations."""
     poses = design_poses(design)
-    if design.motion.method != "four-pose":
-        raise ValueError("motion method 'fit' is not available yet (see issue 4)")
-    c_rel, pose_t, mu = _four_pose(design, poses)
-    reference = poses[0]
+    fit = None
+    if design.motion.method == "fit":
+        from . import evolution  # only needed for fitted motions
+
+        fit = evolution.fit_motion(poses, inertia_of(design),
+                                   evolution.evolution_settings(design.evolution))
+        c_rel, pose_t, mu, reference = fit.motion_rel, fit.closest_t, None, fit.reference
+    else:
+        c_rel, pose_t, mu = _four_pose(design, poses)
+        reference = poses[0]
     monic = fourpose.world_motion(reference, c_rel)
     facts = factor.all_factorizations(monic)
     loop_list = loops.nine_loops(facts)
     jf = np.stack([lp.joint_factors for lp in loop_list])
     s_min, s_t = singularity.singularity_min(jf)
     motion = dq.mul(monic, reference)
-    sol = Solution(design, motion, monic, reference, pose_t, mu, facts, loop_list, s_min, s_t)
+    sol = Solution(design, motion, monic, reference, pose_t, mu, facts, loop_list, s_min, s_t,
+                   fit=fit)
     if realize and design.realization.enabled:
         sol = _with_realization(sol)
     return sol
@@ -143,6 +151,11 @@ def result_to_dict(sol: Solution) -> dict[str, Any]:
         ],
         "loop": sol.design.loop,
     }
+    out["motion"]["method"] = sol.design.motion.method
+    if sol.fit is not None:
+        from . import evolution
+
+        out["motion"]["fit"] = evolution.fit_result_to_dict(sol.fit)
     if sol.realization is not None:
         from . import realize as realize_mod
 

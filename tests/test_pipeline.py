@@ -100,3 +100,40 @@ def test_criteria_choose_mu_through_the_design(criterion):
     best = selection.score_mu(fams, d.motion.family, np.array([sol.mu]), criterion, **params)
     fixed = selection.score_mu(fams, d.motion.family, np.array([1.5]), criterion, **params)
     assert best[0] <= fixed[0] + 1e-9
+
+
+def test_fit_design_reports_targets_and_hits_the_reference():
+    d = design.load_design(ASSETS / "sun-path-fit.json")
+    sol = pipeline.solve(d, realize=False)
+    res = pipeline.result_to_dict(sol)
+    fit = res["motion"]["fit"]
+    assert res["motion"]["method"] == "fit" and len(fit["targets"]) == len(d.poses)
+    assert fit["targets"][0]["closest_t"] is None and fit["targets"][0]["distance"] < 1e-9
+    c = np.array(res["motion"]["coefficients"])
+    s0 = pipeline.design_poses(d)[0]
+    assert np.allclose(dq.normalize(poly.evaluate_pose(c, np.inf)), dq.normalize(s0))
+    # the noisy targets are approximated: each reported distance is the metric distance
+    from paraloop_core import metric
+
+    inertia = pipeline.inertia_of(d)
+    for target, entry in zip(pipeline.design_poses(d), fit["targets"], strict=True):
+        t = np.inf if entry["closest_t"] is None else entry["closest_t"]
+        d2 = metric.distance_sq(target, poly.evaluate_pose(c, t), inertia)
+        assert np.isclose(np.sqrt(d2), entry["distance"], atol=1e-9)
+        assert entry["distance"] < 0.1
+
+
+def test_bad_evolution_settings_are_refused_by_the_loader():
+    import copy
+
+    data = json.loads((ASSETS / "sun-path-fit.json").read_text())
+    bad = copy.deepcopy(data)
+    bad["evolution"]["starts"] = 0
+    from paraloop_core.errors import DesignFileError
+
+    with pytest.raises(DesignFileError, match="starts"):
+        design.design_from_dict(bad)
+    bad["evolution"] = {"colour": 1}
+    with pytest.raises(DesignFileError) as info:
+        design.design_from_dict(bad)
+    assert info.value.field == "evolution"

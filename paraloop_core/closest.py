@@ -1,0 +1,152 @@
+"""Closest pose on a motion to target poses under the metric of eq. 8 (MATH section 8 (2a)).
+
+For a target ``S`` and motion ``C(t)`` of degree n put ``G(t) = S~ C(t)``; then
+``dist^2(S, C(t)) = Q(t) / N(t)`` with ``Q = G^T M G`` (``M`` the quadratic form of
+:func:`quadratic_form`) and ``N = |G_P|^2``, both of degree 2n. Critical points are the real
+roots of ``Q'N - QN'``, whose ``t^(4n-1)`` coefficient cancels identically (degree <= 10 for
+cubics); ``t = inf`` is tested too. All targets are solved in one batched companion-matrix call.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import dq, metric, poly
+
+
+def quadratic_form(inertia: metric.Inertia) -> np.ndarray:
+    """Symmetric ``(8, 8)`` ``M`` with ``dist^2(1, G) = G^T M G / |G_P|^2`` (any scale of G).
+
+    ``G^T M G = 4 |A G|^2`` where A stacks the linear terms of the closed form of eq. 8:
+    ``g0'``, ``g' + g x c`` and ``sqrt(1/3) w a_k (g x e_k)``.
+    """
+
+    def cross_matrix(v: np.ndarray) -> np.ndarray:  # [v]_x with  g x v = -[v]_x g
+        return np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+
+    rows = np.zeros((13, 8))
+    rows[0, 4] = 1.0
+    rows[1:4, 5:8] = np.eye(3)
+    rows[1:4, 1:4] = -cross_matrix(inertia.center)
+    scale = inertia.weight * inertia.semi_axes / np.sqrt(3.0)
+    for k in range(3):  # three ellipsoid axes, not data
+        rows[4 + 3 * k : 7 + 3 * k, 1:4] = -scale[k] * cross_matrix(inertia.axes[k])
+    return 4.0 * rows.T @ rows
+
+
+def _poly_quadform(a: np.ndarray, m: np.ndarray) -> np.ndarray:
+    """Coefficients ``(..., 2n+1)`` of ``A(t)^T m A(t)`` for ``A`` ``(..., n+1, 8)``."""
+    n = a.shape[-2] - 1
+    gram = np.einsum("...ik,kl,...jl->...ij", a, m, a)
+    out = np.zeros(a.shape[:-2] + (2 * n + 1,))
+    for i in range(n + 1):  # loop over the degree only
+        out[..., i : i + n + 1] += gram[..., i, :]
+    return out
+
+
+def critical_polynomial(c: np.ndarray, s: np.ndarray, inertia: metric.Inertia) -> np.ndarray:
+    """Numerator of ``d/dt dist^2(S, C(t))`` ``(..., 4n-1)`` ascending (degree <= 4n - 2).
+
+    ``c`` ``(..., n+1, 8)`` motion, ``s`` ``(..., 8)`` targets (any scale), broadcasting.
+    """
+    g = dq.mul(dq.conj(s)[..., None, :], c)
+    q = _poly_quadform(g, quadratic_form(inertia))
+    nn = _poly_quadform(g, np.diag([1.0, 1, 1, 1, 0, 0, 0, 0]))
+    k = np.arange(q.shape[-1])
+    dq_, dn = (q * k)[..., 1:], (nn * k)[..., 1:]
+    deg = q.shape[-1] - 1  # 2n
+    num = np.zeros(q.shape[:-1] + (2 * deg,))
+    for i in range(deg + 1):  # convolution over the (tiny) degree
+        num[..., i : i + deg] += dq_ * nn[..., i : i + 1] - q[..., i : i + 1] * dn
+    return num[..., :-1]  # the t^(4n-1) coefficient cancels identically
+
+
+def _all_roots(coeffs: np.ndarray) -> np.ndarray:
+    """Real parts of all complex roots ``(..., d)`` of polynomials ``(..., d+1)``.
+
+    A (nearly) vanishing leading coefficient means roots near t = inf, which is tested
+    separately; it is replaced by a tiny nonzero value so every item has d (huge) roots.
+    """
+    scale = np.max(np.abs(coeffs), axis=-1, keepdims=True)
+    c = coeffs / np.where(scale > 0, scale, 1.0)
+    lead = c[..., -1:]
+    tiny = 1e-13
+    c[..., -1:] = np.where(np.abs(lead) < tiny, np.where(lead < 0, -tiny, tiny), lead)
+    c[..., :-1] = np.where(scale > 0, c[..., :-1], 0.0)  # all-zero: f constant, roots at 0
+    return poly.real_poly_roots(c).real
+
+
+def _horner(coeffs: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Values ``(..., k)`` of polynomials ``(..., d+1)`` (ascending) at points ``(..., k)``."""
+    out = np.zeros_like(t) + coeffs[..., -1:]
+    for k in range(coeffs.shape[-1] - 2, -1, -1):  # loop over the degree only
+        out = out * t + coeffs[..., k : k + 1]
+    return out
+
+
+def closest_pose(
+    c: np.ndarray, s: np.ndarray, inertia: metric.Inertia
+) -> tuple[np.ndarray, np.ndarray]:
+    """Global closest pose on the closed motion cycle for each target.
+
+    ``c`` ``(..., n+1, 8)`` motion polynomial, ``s`` ``(..., 8)`` target poses (any scale),
+    batch shapes broadcast. Returns ``(t, d2)`` ``(...)``: the parameter (``inf`` allowed) and
+    the squared metric distance there. Every real part of a root is a candidate (a spurious one
+    only adds a candidate), so near-real roots are never lost to a threshold.
+    """
+    c = poly.as_poly(c, "motion")
+    s = np.asarray(s, dtype=np.float64)
+    if s.shape[-1:] != (8,) or not np.all(np.isfinite(s)):
+        raise ValueError(f"targets must be finite (..., 8) poses, got shape {s.shape}")
+    num = critical_polynomial(c, s, inertia)
+    roots = _all_roots(num)
+    # Companion eigenvalues lose accuracy where the coefficients span many magnitudes; two
+    # Newton steps on the polynomial restore it (both versions stay candidates).
+    polished = roots
+    dnum = num[..., 1:] * np.arange(1, num.shape[-1])
+    for _ in range(2):
+        with np.errstate(divide="ignore", invalid="ignore"):  # flat spots: keep the root
+            step = _horner(num, polished) / _horner(dnum, polished)
+        polished = np.where(np.isfinite(step), polished - step, polished)
+    cand = np.concatenate([roots, polished, np.full(roots.shape[:-1] + (1,), np.inf)], axis=-1)
+    poses = poly.evaluate_pose(c[..., None, :, :], cand)
+    d2 = metric.distance_sq(s[..., None, :], poses, inertia)
+    best = np.argmin(d2, axis=-1)[..., None]
+    return (
+        np.take_along_axis(cand, best, -1)[..., 0],
+        np.take_along_axis(d2, best, -1)[..., 0],
+    )
+
+
+def arc_table(
+    c: np.ndarray, inertia: metric.Inertia, samples: int = 1024
+) -> tuple[np.ndarray, np.ndarray]:
+    """Cumulative metric arc length along the closed cycle of one motion ``(n+1, 8)``.
+
+    Returns ``(u (K+1,), s (K+1,))`` over equally spaced ``u`` (``t = poly.param_to_t(u)``),
+    starting at ``C(inf)`` (u = 0) with ``s[0] = 0``; ``s[-1]`` is the cycle length (chord sum).
+    """
+    u = np.linspace(0.0, 1.0, samples + 1)
+    poses = poly.evaluate_pose(c, poly.param_to_t(u))
+    seg = np.sqrt(np.maximum(metric.distance_sq(poses[:-1], poses[1:], inertia), 0.0))
+    return u, np.concatenate([[0.0], np.cumsum(seg)])
+
+
+def proportional_params(
+    c: np.ndarray, targets: np.ndarray, inertia: metric.Inertia, t_first: float,
+    samples: int = 1024,
+) -> np.ndarray:
+    """Guiding parameters ``(m-1,)`` by proportional spacing (MATH section 8 (2b), eq. 10).
+
+    ``targets`` ``(m, 8)`` ordered, ``targets[0]`` the pose at ``C(inf)``. The closed cycle is
+    split from ``C(inf)`` into arcs proportional to the target chords (closing chord included);
+    it is walked forward when ``t_first`` (closest parameter of ``targets[1]``) lies on the
+    shorter way forward, else backward.
+    """
+    u, s = arc_table(c, inertia, samples)
+    length = s[-1]
+    chords = np.sqrt(metric.distance_sq(targets, np.roll(targets, -1, axis=0), inertia))
+    sigma = length * np.cumsum(chords)[:-1] / np.sum(chords)
+    s1 = np.interp(poly.t_to_param(t_first), u, s)
+    pos = sigma if s1 <= length - s1 else length - sigma
+    return poly.param_to_t(np.interp(pos, s, u))
