@@ -4,7 +4,8 @@ inside ``server.atomic()``).
 Scene tree: ``/targets/i`` gizmos (+ ``/frame``, ``/label``), ``/motion/path`` trajectory,
 ``/motion/frames`` sampled moving frames, ``/motion/current`` the animated frame with its
 ``/ellipsoid``, ``/factorizations`` six factorizations' axes (Fig. 5 colours, home pose),
-``/loop/axes`` the selected loop's axes and ``/loop/bars``, ``/loop/joints`` the linkage.
+``/loop/axes`` the selected loop's axes and ``/loop/bars``, ``/loop/joints`` the linkage,
+``/loop/spaces/i`` the carved design spaces (moving with their links).
 """
 
 from __future__ import annotations
@@ -35,6 +36,9 @@ PATH_COLOR = (40, 40, 70)
 LAYERS = {"Trajectory": ("path",), "Moving frames": ("frames",),
           "Inertia ellipsoid": ("ellipsoid",), "Factorization axes": ("facts",),
           "Loop axes": ("axes",), "Linkage": ("bars", "joints")}
+#: The carved design spaces' layer (toggled in the Fabrication panel) and their colours.
+SPACES_LAYER = "Design spaces"
+SPACE_COLORS = np.vstack([LINK_COLORS[:1], FACTOR_COLORS[:5]])
 PATH_SAMPLES = 256
 FRAME_SAMPLES = 24
 
@@ -88,6 +92,8 @@ class SceneView:
         self.center = np.zeros(3)
         self.loop_colors = np.zeros((6, 2, 3), dtype=np.uint8)
         self.motion: np.ndarray | None = None
+        self.spaces: list[tuple[int, Any]] = []  # (link, mesh handle) of carved spaces
+        self.spaces_jf: np.ndarray | None = None  # the loop they were carved for
 
     # --- targets ----------------------------------------------------------------------------
     def set_targets(self, design: Design) -> None:
@@ -185,6 +191,25 @@ class SceneView:
             self.handles["facts"] = self.server.scene.add_line_segments(
                 "/factorizations", segs, colors, thickness=1.5, thickness_units="screen")
 
+    # --- design spaces ----------------------------------------------------------------------
+    def set_spaces(self, joint_factors: np.ndarray, bodies: list) -> None:
+        """Replace the carved design spaces: ``bodies[i]`` (vertices, faces) in link i's home
+        frame, or None (nothing meshable)."""
+        for _, h in self.spaces:
+            h.remove()
+        self.spaces_jf = np.array(joint_factors, float)
+        self.spaces = [(i, self.server.scene.add_mesh_simple(
+            f"/loop/spaces/{i}", np.asarray(b[0], np.float32), np.asarray(b[1], np.uint32),
+            color=tuple(int(c) for c in SPACE_COLORS[i]), opacity=0.45, side="double",
+            cast_shadow=False, receive_shadow=False))
+            for i, b in enumerate(bodies) if b is not None]
+
+    def spaces_current(self) -> bool:
+        """Whether the carved spaces belong to the loop on screen."""
+        jf = self.joint_factors
+        return (self.spaces_jf is not None and jf is not None
+                and np.array_equal(self.spaces_jf, jf))
+
     # --- loop and linkage -------------------------------------------------------------------
     def set_loop(self, sol: Any) -> None:
         """Choose the linkage geometry: the realization's points, else the bare loop polyline."""
@@ -220,6 +245,10 @@ class SceneView:
         if home is None:  # axes only: centre them at the target centroid
             home = np.repeat(self.center[None], 12, axis=0)
         links = loops.link_poses(self.joint_factors, t)[0]  # (6, 8)
+        if self.spaces and self.spaces_current():
+            pos, wxyz = dq.to_pos_wxyz(links)
+            for i, handle in self.spaces:
+                handle.position, handle.wxyz = pos[i], wxyz[i]
         pts = dq.transform_points(np.repeat(links, 2, axis=0), home)
         e = pts[1::2]  # E_i on A_i
         s_next = np.roll(pts[0::2], -1, axis=0)  # S_{i+1} on A_i
@@ -252,6 +281,10 @@ class SceneView:
                 show = layer not in hidden and (layer != "Linkage" or self.points_home is not None)
                 if handle.visible != show:
                     handle.visible = show
+        show = SPACES_LAYER not in hidden and self.spaces_current()
+        for _, handle in self.spaces:
+            if handle.visible != show:
+                handle.visible = show
 
     @staticmethod
     def _cylinders(a: np.ndarray, b: np.ndarray, radius: float, min_len: float,

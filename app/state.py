@@ -11,6 +11,7 @@ import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -29,6 +30,23 @@ def autosave_path_for(design_path: Path | None, name: str) -> Path:
     base = Path(os.environ.get("XDG_DATA_HOME") or Path.home() / ".local" / "share")
     safe = "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in name) or "untitled"
     return base / "paraloop" / "autosave" / f"{safe}.json"
+
+
+@dataclasses.dataclass(frozen=True)
+class FabSettings:
+    """Fabrication panel settings (validated by the panel): part size and clearance in mm,
+    carving radius in mm (0: the realization's median design-space radius), voxels along a
+    space, the carving order (a preset name or ``custom``) and its custom pairs text."""
+
+    size_mm: float = 400.0
+    clearance_mm: float = 0.3
+    print_in_place: bool = False
+    ground: bool = False
+    space_radius_mm: float = 0.0
+    resolution: int = 96
+    order: str = "base first"
+    custom_order: str = ""
+    carved_parts: bool = False
 
 
 class StudioState:
@@ -52,6 +70,8 @@ class StudioState:
         self.speed = 0.1  # cycles per second
         self.hidden: set[str] = set()  # view layers switched off
         self.thickness = 1.0  # bars drawn this many times their radius
+        self.fab = FabSettings()
+        self.tasks: dict[str, Any] = {}  # fabrication task ("carve", "export") -> client
         self._merge_key: str | None = None
         self._merge_time = 0.0
 
@@ -144,6 +164,20 @@ class StudioState:
             self.commit(dataclasses.replace(d, poses=d.poses[:i] + d.poses[i + 1 :],
                                             locked=locked))
             return True
+
+    # --- fabrication tasks ------------------------------------------------------------------
+    def add_task(self, name: str, client: Any = None) -> None:
+        """Queue a fabrication task for the worker (pressed twice: runs once, for the last
+        ``client``, who gets its download)."""
+        with self._lock:
+            self.tasks.pop(name, None)
+            self.tasks[name] = client
+
+    def take_tasks(self) -> list[tuple[str, Any]]:
+        """The queued ``(task, client)``, oldest first; the queue is emptied."""
+        with self._lock:
+            out, self.tasks = list(self.tasks.items()), {}
+            return out
 
     # --- autosave ---------------------------------------------------------------------------
     def autosave(self) -> bool:

@@ -30,7 +30,8 @@ from paraloop_core import dq, pipeline, poly
 from paraloop_core.design import Design, Pose
 from paraloop_core.errors import DesignFileError, ParaloopError, RealizationError
 
-from .exports import export_files
+from .exports import export_files, slug
+from .fabrication_panel import FabricationPanel
 from .panels import Panels
 from .plots import Plots
 from .scene import SceneView, design_scale
@@ -61,6 +62,7 @@ class Studio:
         self._cache: OrderedDict[str, tuple[pipeline.Solution, str]] = OrderedDict()
         self.scene = SceneView(server, self._on_gizmo)
         self.panels = Panels(server, self, criteria=HAS_SELECTION, realization=HAS_REALIZE)
+        self.fabrication = FabricationPanel(server, self)
         self.plots = Plots(server)
         self.worker = NewestWorker(self._job, on_slow=self._slow, on_slow_done=self._slow_done)
         self._stop = threading.Event()
@@ -99,17 +101,17 @@ class Studio:
         return Pose(pos, wxyz)
 
     # --- files ------------------------------------------------------------------------------
-    def _send(self, event: Any, name: str, data: bytes) -> None:
+    def send_file(self, client: Any, name: str, data: bytes) -> None:
+        """Download ``data`` as ``name`` in ``client``'s page (kept in ``downloads``)."""
         self.downloads.append((name, data))
         del self.downloads[:-10]
-        if event is not None and event.client is not None:
-            event.client.send_file_download(name, data, save_immediately=True)
+        if client is not None:
+            client.send_file_download(name, data, save_immediately=True)
 
     def download_design(self, event: Any) -> None:
         design = self.state.design
-        slug = "".join(c if c.isalnum() or c in "-_" else "-" for c in design.name)[:60]
         data = json.dumps(design_mod.design_to_dict(design), indent=2) + "\n"
-        self._send(event, f"{slug.strip('-') or 'design'}.json", data.encode("utf-8"))
+        self.send_file(event.client, f"{slug(design.name)}.json", data.encode("utf-8"))
 
     def download_export(self, event: Any) -> None:
         sol = self.solution
@@ -119,7 +121,7 @@ class Studio:
         if self.error:
             self.notify("Exporting the last valid design", self.error, error=True)
         for name, data in export_files(sol):
-            self._send(event, name, data)
+            self.send_file(event.client, name, data)
 
     def upload_design(self, event: Any) -> None:
         upload = event.target.value
@@ -160,6 +162,8 @@ class Studio:
     def _job(self, level: int) -> None:
         try:
             self._update(level)
+            for task, client in self.state.take_tasks():  # carve / export, after the update
+                self.fabrication.run(task, client)
         except Exception as exc:  # a bug, not bad input: keep serving and say so
             traceback.print_exc()
             self.notify("Internal error", f"{exc!r} (see the server log)", error=True)
@@ -172,6 +176,7 @@ class Studio:
             with self.server.atomic():
                 self.scene.set_targets(design)
                 self.panels.sync(design)
+                self.fabrication.sync(self.state.fab)
         stale = version != self._drawn[0] or level > self._drawn[1]
         if level >= PREVIEW and stale:
             self._solve_and_draw(design, version, level)

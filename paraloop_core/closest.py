@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import dq, metric, poly
+from . import dq, factor, metric, poly
 
 
 def quadratic_form(inertia: metric.Inertia) -> np.ndarray:
@@ -64,13 +64,14 @@ def critical_polynomial(c: np.ndarray, s: np.ndarray, inertia: metric.Inertia) -
 def _all_roots(coeffs: np.ndarray) -> np.ndarray:
     """Real parts of all complex roots ``(..., d)`` of polynomials ``(..., d+1)``.
 
-    A (nearly) vanishing leading coefficient means roots near t = inf, which is tested
-    separately; it is replaced by a tiny nonzero value so every item has d (huge) roots.
+    An exactly vanishing leading coefficient (degree drop: roots at t = inf, tested
+    separately) is replaced by a value 1e-30 of the largest coefficient, which moves no finite
+    root; a larger floor (1e-13) was seen to drag a real critical point from -708 to -117.
     """
     scale = np.max(np.abs(coeffs), axis=-1, keepdims=True)
     c = coeffs / np.where(scale > 0, scale, 1.0)
     lead = c[..., -1:]
-    tiny = 1e-13
+    tiny = 1e-30
     c[..., -1:] = np.where(np.abs(lead) < tiny, np.where(lead < 0, -tiny, tiny), lead)
     c[..., :-1] = np.where(scale > 0, c[..., :-1], 0.0)  # all-zero: f constant, roots at 0
     return poly.real_poly_roots(c).real
@@ -102,20 +103,50 @@ def closest_pose(
     roots = _all_roots(num)
     # Companion eigenvalues lose accuracy where the coefficients span many magnitudes; two
     # Newton steps on the polynomial restore it (both versions stay candidates).
-    polished = roots
     dnum = num[..., 1:] * np.arange(1, num.shape[-1])
-    for _ in range(2):
-        with np.errstate(divide="ignore", invalid="ignore"):  # flat spots: keep the root
+    # The monomial-basis polynomial is ill-conditioned when roots cluster or lie far out
+    # (errors of 1e-3 in t, roots lost at |t| ~ 1e4): samples adapted to the motion guarantee a
+    # candidate in every basin, and the Newton steps then converge there.
+    quads, _ = factor.norm_quadratics_batch(c)
+    h0 = -0.5 * quads[..., 1]
+    samples = poly.cycle_parameters(h0, np.sqrt(np.maximum(quads[..., 0] - h0**2, 0.0)), 32)
+    samples = np.broadcast_to(samples, roots.shape[:-1] + samples.shape[-1:])
+    seeds = np.concatenate([roots, samples], axis=-1)
+    polished = seeds
+    for _ in range(3):
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # flat spots
             step = _horner(num, polished) / _horner(dnum, polished)
         polished = np.where(np.isfinite(step), polished - step, polished)
-    cand = np.concatenate([roots, polished, np.full(roots.shape[:-1] + (1,), np.inf)], axis=-1)
-    poses = poly.evaluate_pose(c[..., None, :, :], cand)
-    d2 = metric.distance_sq(s[..., None, :], poses, inertia)
-    best = np.argmin(d2, axis=-1)[..., None]
-    return (
-        np.take_along_axis(cand, best, -1)[..., 0],
-        np.take_along_axis(d2, best, -1)[..., 0],
-    )
+    cand = np.concatenate([seeds, polished, np.full(roots.shape[:-1] + (1,), np.inf)], axis=-1)
+    d2 = metric.distance_sq(s[..., None, :], poly.evaluate_pose(c[..., None, :, :], cand), inertia)
+    return _polish(c, s, inertia, cand, d2)
+
+
+def _polish(c: np.ndarray, s: np.ndarray, inertia: metric.Inertia, cand: np.ndarray,
+            d2: np.ndarray, keep: int = 3) -> tuple[np.ndarray, np.ndarray]:
+    """Refine the ``keep`` best candidates on the distance itself: parabola steps in
+    ``u = t_to_param(t)`` of shrinking width (1e-3 .. 1e-7), each kept only if it lowers the
+    value (robust where the polynomial's roots are inaccurate, e.g. clustered critical points).
+    """
+    k = np.argsort(d2, axis=-1)[..., :keep]
+    u = poly.t_to_param(np.take_along_axis(cand, k, -1))
+    best = np.take_along_axis(d2, k, -1)
+    cc, ss = c[..., None, None, :, :], s[..., None, None, :]
+
+    def dist(uu: np.ndarray) -> np.ndarray:
+        return metric.distance_sq(ss, poly.evaluate_pose(cc, poly.param_to_t(uu)), inertia)
+
+    for h in (1e-3, 3e-4, 1e-4, 3e-5, 1e-5, 1e-6, 1e-7):
+        fl, fr = np.moveaxis(dist(np.stack([u - h, u + h], axis=-1)), -1, 0)
+        curv = fl - 2.0 * best + fr
+        step = np.where(curv > 0, 0.5 * h * (fl - fr) / np.where(curv > 0, curv, 1.0), 0.0)
+        un = u + np.clip(step, -h, h)
+        fn = dist(un[..., None])[..., 0]
+        better = fn < best
+        u, best = np.where(better, un, u), np.where(better, fn, best)
+    i = np.argmin(best, axis=-1)[..., None]
+    return (poly.param_to_t(np.take_along_axis(u, i, -1))[..., 0],
+            np.take_along_axis(best, i, -1)[..., 0])
 
 
 def arc_table(

@@ -17,7 +17,7 @@ spaced parameters ``u_k = k / samples`` the moving part is placed by the relativ
   (measured once, minus the polygon error: ``joint_zone_gap_mm``), and (iii) the parts outside
   ``W_J`` are checked at every sample like any other pair;
 * continuity: the gap at any parameter between samples is at least the gap at the nearest
-  sample minus the displacement bound of :func:`carve.displacement_bounds` (points of the
+  sample minus the displacement bound of :func:`motion_bound.displacement_bounds` (points of the
   moving part within its bounding sphere, mm). ``continuous_min_gap_mm > 0`` for every pair
   certifies the parts collision-free over the whole continuous cycle.
 """
@@ -36,9 +36,9 @@ import numpy as np
 import trimesh
 
 from . import carve, dq, grounding, loops, meshing, parts, poly
-from .carve import displacement_bounds, motion_bound
 from .clearance import segment_distance
 from .errors import FabricationError
+from .motion_bound import displacement_bounds, motion_bound
 from .parts import Assembly, Part, PartSpec, design_scale, resolve_spec, zone_hulls, zone_solid
 
 Progress = Callable[[float, str], None]
@@ -262,13 +262,13 @@ def export_parts(joint_factors: np.ndarray, points: np.ndarray, radius: float, *
                  spec: PartSpec | None = None, ground: bool = True, ground_axis: int | None = None,
                  ground_z: float | None = None,
                  space_radius: float | Sequence[float] | None = None,
-                 resolution: int = 128, samples: int = 720,
-                 progress: Progress | None = None) -> ExportResult:
+                 resolution: int = 128, order: Sequence[tuple[int, int]] = carve.DEFAULT_ORDER,
+                 samples: int = 720, progress: Progress | None = None) -> ExportResult:
     """Parts of a realized loop (``joint_factors`` ``(6, 8)``, ``points`` ``(12, 3)``, bar
     ``radius``, design units) at ``spec.size_mm``, with a grounding column on link 0
     (``ground``; ``ground_z`` in design units) and, if ``space_radius`` is given (one value:
     base link twice; or six, e.g. ``Realization.design_space_radii``), carved design spaces as
-    link bodies; exported and verified."""
+    link bodies (:func:`carve_design_spaces`); exported and verified."""
     pts = np.asarray(points, float)
     spec = spec or PartSpec()
     scale = design_scale(pts, spec.size_mm)
@@ -276,11 +276,9 @@ def export_parts(joint_factors: np.ndarray, points: np.ndarray, radius: float, *
     report: dict = {}
     bodies = None
     if space_radius is not None:
-        spaces = carve.default_spaces(pts, space_radius, resolution=resolution)
-        cv = carve.carve(joint_factors, pts, spaces, keep_radius=float(radius),
-                         joint_radius=rs.boss_radius_mm / scale * 1.1,
-                         progress=_stage(progress, 0.0, 0.4))
-        bodies = [_carved_body(sp) for sp in cv.spaces]
+        cv, bodies = carve_design_spaces(joint_factors, pts, radius, space_radius, spec=spec,
+                                         resolution=resolution, order=order,
+                                         progress=_stage(progress, 0.0, 0.4))
         report["carving"] = {**cv.report, "meshed": [b is not None for b in bodies]}
     extras = None
     if ground:
@@ -312,6 +310,29 @@ def export_parts(joint_factors: np.ndarray, points: np.ndarray, radius: float, *
     asm = parts.build_assembly(joint_factors, pts, radius, spec, bodies, extras)
     return export_assembly(asm, samples=samples, extra_report=report,
                            progress=_stage(progress, 0.5, 1.0))
+
+
+def carve_design_spaces(joint_factors: np.ndarray, points: np.ndarray, radius: float,
+                        space_radius: float | Sequence[float], *, spec: PartSpec | None = None,
+                        resolution: int = 128,
+                        order: Sequence[tuple[int, int]] = carve.DEFAULT_ORDER,
+                        progress: Progress | None = None,
+                        ) -> tuple[carve.Carving, list[tuple[np.ndarray, np.ndarray] | None]]:
+    """Carve capsule design spaces of ``space_radius`` (design units; see
+    :func:`carve.default_spaces`) in ``order`` with joint zones sized for the hardware of
+    ``spec``, and mesh them (None where a space is too thin to mesh). Meshes in home frames."""
+    pts = np.asarray(points, float)
+    spec = spec or PartSpec()
+    scale = design_scale(pts, spec.size_mm)
+    rs = resolve_spec(spec, float(radius), scale)
+    spaces = carve.default_spaces(pts, space_radius, resolution=resolution)
+    cv = carve.carve(joint_factors, pts, spaces, keep_radius=float(radius),
+                     joint_radius=rs.boss_radius_mm / scale * 1.1, order=order,
+                     progress=_stage(progress, 0.0, 0.9))
+    bodies = [_carved_body(sp) for sp in cv.spaces]
+    if progress is not None:
+        progress(1.0, "carved spaces meshed")
+    return cv, bodies
 
 
 def _carved_body(space: carve.VoxelSpace) -> tuple[np.ndarray, np.ndarray] | None:

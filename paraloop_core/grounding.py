@@ -6,7 +6,7 @@ point of the swept linkage minus a margin), and stands on a round foot. It is co
 joint it extends, so against the adjacent link's hub (a solid of revolution about the same axis
 on the far side of the pin's midpoint) it is clear for every joint angle by construction; the
 moving links' bars and the other hubs (as capsules) are checked over the cycle at ``samples``
-parameters with the continuous bound of :mod:`carve`: a certified distance is
+parameters with the continuous bound of :mod:`motion_bound`: a certified distance is
 ``min over samples (distance - displacement bound)``, positive means collision-free.
 All lengths in design units, base frame, home configuration.
 """
@@ -18,9 +18,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import dq, loops, poly
-from .carve import displacement_bounds, motion_bound
 from .clearance import segment_distance
 from .errors import FabricationError
+from .motion_bound import displacement_bounds, motion_bound
 
 
 @dataclass(frozen=True)

@@ -18,7 +18,7 @@ where the family degenerates (:func:`fourpose.bad_mu_mask`) or the cubic is not 
 * ``"extra-poses"``: ``poses`` ``(E, 8)`` world poses, ``inertia``; score = sum over the poses
   of the squared metric distance to the closest pose of the motion: critical points of MATH
   section 8 (2a) plus motion-adapted samples, polished on the distance (see
-  :func:`_closest_distance_sq`; never above a 20001-sample scan in tests).
+  :func:`closest.closest_pose`; never above a 20001-sample scan in tests).
 
 The metric is left invariant, so length and pose distances are computed in the S_0 frame.
 """
@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import closest, dq, factor, loops, metric, poly
+from . import closest, dq, factor, loops, metric
 from .errors import NonGenericMotionError
 from .fourpose import FourPoseFamilies, bad_mu_mask, four_pose_motion_batch, world_motion
 
@@ -51,50 +51,6 @@ def _check_params(criterion: str, params: dict) -> None:
     if criterion in ("length", "extra-poses") and not isinstance(
             params.get("inertia"), metric.Inertia):
         raise ValueError(f"criterion {criterion!r} needs inertia=metric.Inertia(...)")
-
-
-def _adaptive_t(quads: np.ndarray, per_factor: int) -> np.ndarray:
-    """:func:`poly.cycle_parameters` ``(M, 3 per_factor)`` of norm factors ``(M, 3, 2)``."""
-    h0 = -0.5 * quads[..., 1]
-    return poly.cycle_parameters(h0, np.sqrt(np.maximum(quads[..., 0] - h0**2, 0.0)), per_factor)
-
-
-def _closest_distance_sq(c: np.ndarray, quads: np.ndarray, targets: np.ndarray,
-                         inertia: metric.Inertia) -> np.ndarray:
-    """``min_t dist^2(C(t), X)`` ``(M, E)`` for motions ``(M, n+1, 8)`` with norm factors
-    ``quads`` and targets ``(E, 8)`` (same frame).
-
-    Candidates: the real parts of all roots of :func:`closest.critical_polynomial` (MATH
-    section 8 (2a), exact in exact arithmetic), ``t = inf``, and 96 motion-adapted samples
-    (:func:`_adaptive_t`): the monomial-basis critical polynomial is ill-conditioned when
-    roots cluster or the visiting parameters are large (seen: errors of 1e-3 in t, and roots
-    lost entirely with parameters ~1e4). The three best candidates are polished on the
-    distance itself by parabola steps in ``u`` of shrinking width (1e-3 .. 1e-7), each kept
-    only if it lowers the value, so t is accurate to ~1e-7 in u within the found basin.
-    """
-    crit = closest.critical_polynomial(c[:, None], targets, inertia)  # (M, E, 4n-1)
-    # only an (almost) exactly vanishing leading coefficient is replaced: moves no root
-    tiny = 1e-30 * np.abs(crit).max(axis=-1, keepdims=True) + 1e-300
-    lead = crit[..., -1:]
-    crit[..., -1:] = np.where(np.abs(lead) < tiny, np.where(lead < 0, -tiny, tiny), lead)
-    samples = np.broadcast_to(_adaptive_t(quads, 32)[:, None], crit.shape[:-1] + (96,))
-    cand = np.concatenate([poly.real_poly_roots(crit).real, samples,
-                           np.full(crit.shape[:-1] + (1,), np.inf)], axis=-1)
-    f = metric.distance_sq(targets[:, None], poly.evaluate_pose(c[:, None, None], cand), inertia)
-    k = np.argsort(f, axis=-1)[..., :3]
-    u = poly.t_to_param(np.take_along_axis(cand, k, -1))
-    best = np.take_along_axis(f, k, -1)  # (M, E, 3)
-    for h in (1e-3, 3e-4, 1e-4, 3e-5, 1e-5, 1e-6, 1e-7):
-        ut = np.stack([u - h, u + h], axis=-1)
-        fl, fr = metric.distance_sq(targets[:, None, None], poly.evaluate_pose(
-            c[:, None, None, None], poly.param_to_t(ut)), inertia).transpose(3, 0, 1, 2)
-        curv = fl - 2.0 * best + fr
-        step = np.where(curv > 0, 0.5 * h * (fl - fr) / np.where(curv > 0, curv, 1.0), 0.0)
-        un = u + np.clip(step, -h, h)
-        fn = metric.distance_sq(targets[:, None], poly.evaluate_pose(
-            c[:, None, None], poly.param_to_t(un)), inertia)
-        u, best = np.where(fn < best, un, u), np.minimum(fn, best)
-    return best.min(axis=-1)
 
 
 def _axis_score(c_world: np.ndarray, axes_idx: tuple[int, int], params: dict) -> tuple:
@@ -142,8 +98,7 @@ def score_mu(fams: FourPoseFamilies, family: int, mus: np.ndarray, criterion: st
                     np.isfinite(poses)) or np.any(np.linalg.norm(poses[:, :4], axis=1) == 0):
                 raise ValueError("poses must be a finite (E >= 1, 8) array of poses")
             targets = dq.mul(dq.inv(fams.poses[0]), poses)
-            score = np.sum(_closest_distance_sq(c_rel, facts.quadratics,
-                                                dq.normalize(targets), inertia), -1)
+            score = np.sum(closest.closest_pose(c_rel[:, None], targets, inertia)[1], -1)
     out[ok] = np.where(code == 0, score, np.inf)
     return out
 

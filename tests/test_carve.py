@@ -11,7 +11,7 @@ from scipy import ndimage
 from scipy.spatial import cKDTree
 from test_parts import example_loop
 
-from paraloop_core import carve, dq, loops, meshing, poly
+from paraloop_core import carve, dq, loops, meshing, motion_bound, poly
 from paraloop_core.errors import FabricationError
 
 RES = 40  # voxels along a design space: coarse but quick
@@ -59,7 +59,7 @@ def test_motion_bound_dominates_sampled_speed():
     rng = np.random.default_rng(0)
     for a, b in [(0, 3), (1, 2), (2, 5), (4, 0)]:
         center, radius = pts[2 * b], 0.4
-        mb = carve.motion_bound(jf, a, b, center)
+        mb = motion_bound.motion_bound(jf, a, b, center)
         probe = center + radius * rng.normal(size=(16, 3)) / np.sqrt(3)
         probe = center + (probe - center) * np.minimum(
             1, radius / np.linalg.norm(probe - center, axis=1))[:, None]
@@ -75,9 +75,9 @@ def test_displacement_bounds_cover_the_motion_between_samples():
     jf, pts, _ = example_loop()
     a, b, radius = 1, 4, 0.5
     center = pts[2 * b]
-    mb = carve.motion_bound(jf, a, b, center)
+    mb = motion_bound.motion_bound(jf, a, b, center)
     u = np.sort(np.random.default_rng(1).random(40))
-    delta = carve.displacement_bounds(mb, radius, u)
+    delta = motion_bound.displacement_bounds(mb, radius, u)
     dense = (np.arange(8000) + 0.25) / 8000
     nearest = np.argmin(np.abs((dense[:, None] - u[None, :] + 0.5) % 1.0 - 0.5), axis=1)
     probe = center + np.array([[radius, 0, 0], [0, -radius, 0], [0, 0, radius], [0, 0, 0]])
@@ -88,7 +88,7 @@ def test_displacement_bounds_cover_the_motion_between_samples():
     moved = np.linalg.norm(xs - x0[nearest], axis=-1).max(1)
     assert np.all(moved <= delta[nearest] + 1e-12)
     # adaptive samples: every time is within integrated bound 0.05 of some sample
-    us = carve.adaptive_params(mb, radius, 0.05)
+    us = motion_bound.adaptive_params(mb, radius, 0.05)
     edges, cum = mb.cumulative(radius)
     lam = np.interp(np.pi * (dense - 0.5), edges, cum)
     lam_s = np.interp(np.pi * (us - 0.5), edges, cum)
