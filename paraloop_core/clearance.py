@@ -69,6 +69,8 @@ def segment_distance(p0: np.ndarray, p1: np.ndarray, q0: np.ndarray, q1: np.ndar
     # Interior solution on the lines; parallel (den ~ 0) starts from s = 0 and clamps below.
     s = np.where(den > TOL.zero * a * e, (b * f - c * e) / np.where(den > 0, den, 1.0), 0.0)
     s = np.where(a_ok, np.clip(s, 0.0, 1.0), 0.0)
+    # Second segment a point: the closest point on the first is the clamped projection.
+    s = np.where(a_ok & ~e_ok, np.clip(-c / np.where(a_ok, a, 1.0), 0.0, 1.0), s)
     u = np.where(e_ok, (b * s + f) / np.where(e_ok, e, 1.0), 0.0)
     # Clamp u and recompute s for the clamped u (Ericson, Real-Time Collision Detection 5.1.9).
     uc = np.clip(u, 0.0, 1.0)

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -73,6 +73,20 @@ class RealizationSettings:
 
 
 @dataclass(frozen=True)
+class EndEffectorSettings:
+    """The body moved by the end link (Sec. 5.1): a ``mesh`` file (path relative to the design
+    file) or a built-in ``shape`` ('disc' | 'panel'), ``scale``, vertices ``L`` / ``R`` joining
+    the end-link bars (None = closest to A_2 / A_3), required ``clearance`` (None = rho)."""
+
+    mesh: str | None = None
+    shape: str | None = None
+    scale: float = 1.0
+    L: int | None = None
+    R: int | None = None
+    clearance: float | None = None
+
+
+@dataclass(frozen=True)
 class Design:
     """A complete design; edit with ``dataclasses.replace``."""
 
@@ -84,6 +98,9 @@ class Design:
     realization: RealizationSettings = RealizationSettings()
     locked: tuple[int, ...] = ()
     evolution: dict[str, Any] = field(default_factory=dict)
+    end_effector: EndEffectorSettings | None = None
+    #: folder that relative paths in the design (the end-effector mesh) refer to; not saved
+    base_dir: str | None = None
 
     @property
     def pose_array(self) -> tuple[np.ndarray, np.ndarray]:
@@ -217,7 +234,7 @@ def design_from_dict(data: Any) -> Design:
     """Validate a parsed JSON design; raises DesignFileError naming the first bad field."""
     d = _obj(data, "design")
     allowed = {"format", "version", "name", "poses", "motion", "inertia", "loop",
-               "realization", "locked", "evolution"}
+               "realization", "locked", "evolution", "end_effector"}
     _check_keys(d, allowed, "design")
     if d.get("format", FORMAT) != FORMAT:
         raise DesignFileError("format", f"must be {FORMAT!r}")
@@ -254,8 +271,32 @@ def design_from_dict(data: Any) -> Design:
         realization=_realization(d.get("realization", {})),
         locked=tuple(sorted(set(locked))),
         evolution=_evolution(d.get("evolution", {})),
+        end_effector=_end_effector(d.get("end_effector")),
     )
 
+
+def _end_effector(v: Any) -> EndEffectorSettings | None:
+    if v is None:
+        return None
+    d = _obj(v, "end_effector")
+    _check_keys(d, {"mesh", "shape", "scale", "L", "R", "clearance"}, "end_effector")
+    mesh, shape = d.get("mesh"), d.get("shape")
+    if (mesh is None) == (shape is None):
+        raise DesignFileError("end_effector", "give exactly one of 'mesh' (a file) or 'shape'")
+    if mesh is not None and not (isinstance(mesh, str) and mesh):
+        raise DesignFileError("end_effector.mesh", "must be a file path")
+    if shape is not None and shape not in ("disc", "panel"):
+        raise DesignFileError("end_effector.shape", f"must be 'disc' or 'panel', got {shape!r}")
+    ends = {}
+    for key in ("L", "R"):
+        idx = d.get(key)
+        if idx is not None and (isinstance(idx, bool) or not isinstance(idx, int) or idx < 0):
+            raise DesignFileError(f"end_effector.{key}", "must be a vertex index or null")
+        ends[key] = idx
+    return EndEffectorSettings(
+        mesh, shape, _num(d.get("scale", 1.0), "end_effector.scale", positive=True),
+        ends["L"], ends["R"],
+        _num(d.get("clearance"), "end_effector.clearance", positive=True, allow_none=True))
 
 def _evolution(v: Any) -> dict[str, Any]:
     """Evolution settings stay JSON-native in the design; validated by building them once."""
@@ -303,6 +344,10 @@ def design_to_dict(design: Design) -> dict[str, Any]:
         },
         "locked": list(design.locked),
         "evolution": dict(design.evolution),
+        "end_effector": None if design.end_effector is None else {
+            "mesh": design.end_effector.mesh, "shape": design.end_effector.shape,
+            "scale": design.end_effector.scale, "L": design.end_effector.L,
+            "R": design.end_effector.R, "clearance": design.end_effector.clearance},
     }
 
 
@@ -316,7 +361,7 @@ def load_design(path: str | Path) -> Design:
         data = json.loads(text)
     except json.JSONDecodeError as exc:
         raise DesignFileError("file", f"not valid JSON (line {exc.lineno}: {exc.msg})") from exc
-    return design_from_dict(data)
+    return replace(design_from_dict(data), base_dir=str(Path(path).resolve().parent))
 
 
 def save_design(design: Design, path: str | Path) -> None:

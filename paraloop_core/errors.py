@@ -58,3 +58,10 @@ class FabricationError(ParaloopError):
     ``empty-space``, ``not-watertight``)."""
 
     reason = "fabrication"
+
+
+class EndEffectorError(ParaloopError):
+    """End-effector mesh refused (reasons: ``load``, ``not-triangles``, ``bad-index``,
+    ``not-finite``, ``degenerate``, ``too-large``, ``bad-parameters``)."""
+
+    reason = "end-effector"

@@ -35,6 +35,7 @@ class Solution:
     singularity_t: np.ndarray  # (9,) where the min occurs (inf allowed)
     realization: Any = None  # realize.Realization or None
     fit: Any = None  # evolution.FitResult for method 'fit', else None
+    end_effector: Any = None  # realize_ee.EndEffectorRealization when the design has one
 
     @property
     def loop(self) -> loops.Loop:
@@ -109,11 +110,30 @@ def _with_realization(sol: Solution) -> Solution:
     from . import realize as realize_mod
 
     r = sol.design.realization
-    real = realize_mod.realize(
-        sol.loop.joint_factors, p=r.p, rho=r.rho, d=r.d, d_fraction=r.d_fraction,
-        rho_fraction=r.rho_fraction, fixed=dict(r.fixed), max_k=r.max_k,
-    )
-    return replace(sol, realization=real)
+    params = dict(p=r.p, rho=r.rho, d=r.d, d_fraction=r.d_fraction,
+                  rho_fraction=r.rho_fraction, fixed=dict(r.fixed), max_k=r.max_k)
+    if sol.design.end_effector is None:
+        return replace(sol, realization=realize_mod.realize(sol.loop.joint_factors, **params))
+    from . import realize_ee
+
+    ee = attach_end_effector(sol)
+    real = realize_ee.realize_with_effector(sol.loop.joint_factors, ee, **params,
+                                            ee_clearance=sol.design.end_effector.clearance)
+    return replace(sol, realization=real.realization, end_effector=real)
+
+
+def attach_end_effector(sol: Solution) -> Any:
+    """The design's end-effector polyhedron placed at the reference pose on the chosen loop."""
+    from pathlib import Path
+
+    from . import endeffector as eem
+
+    s = sol.design.end_effector
+    if s.mesh is not None:
+        body = eem.scaled(eem.load_mesh(Path(sol.design.base_dir or ".") / s.mesh), s.scale)
+    else:
+        body = eem.builtin(s.shape, s.scale)
+    return eem.attach(body, sol.reference, sol.loop.joint_factors, s.L, s.R)
 
 
 def _t_json(t: float) -> float | None:
@@ -161,6 +181,10 @@ def result_to_dict(sol: Solution) -> dict[str, Any]:
 
         out["realization"] = {"loop": sol.design.loop,
                               **realize_mod.realization_to_dict(sol.realization)}
+    if sol.end_effector is not None:
+        from . import realize_ee
+
+        out["end_effector"] = realize_ee.ee_to_dict(sol.end_effector)
     return out
 
 

@@ -129,7 +129,7 @@ def _free_candidates(lp: LoopMotions, polys: np.ndarray) -> Iterator[int]:
         start, size = stop, size * 2
 
 
-def _check_params(p: float, rho: float, d: float, max_k: int) -> None:
+def check_params(p: float, rho: float, d: float, max_k: int) -> None:
     bad = []
     if not (np.isfinite(p) and p > 0):
         bad.append(f"p must be positive, got {p!r}")
@@ -174,7 +174,7 @@ def realize(
                                "singular-loop")
     d = d_fraction * length if d is None else d
     rho = rho_fraction * d if rho is None else rho
-    _check_params(p, rho, d, max_k)
+    check_params(p, rho, d, max_k)
     lp = LoopMotions(jf)
     free = np.array([i not in (fixed or {}) for i in range(6)])
     patterns = DIGITS[np.all(DIGITS[:, ~free] == 0, axis=1)][1:]  # 3^(6-f) - 1, index order

@@ -108,3 +108,13 @@ def test_real_poly_roots_with_leading_zeros():
     assert np.allclose(np.sort(r[1].real), [1.0, 2.0, 3.0])
     assert np.all(np.isnan(r[2])) and np.all(np.isnan(r[3]))
     assert np.allclose(poly.real_poly_roots(c[1]), r[1])  # default behaviour unchanged
+
+
+def test_segment_distance_degenerate_segments():
+    from paraloop_core.clearance import segment_distance
+
+    seg0, seg1 = np.array([0.0, 0, 0]), np.array([2.0, 0, 0])
+    point = np.array([1.0, 1, 0])
+    assert np.isclose(segment_distance(seg0, seg1, point, point), 1.0)
+    assert np.isclose(segment_distance(point, point, seg0, seg1), 1.0)
+    assert np.isclose(segment_distance(point, point, seg0, seg0), np.sqrt(2.0))

@@ -137,3 +137,28 @@ def test_bad_evolution_settings_are_refused_by_the_loader():
     with pytest.raises(DesignFileError) as info:
         design.design_from_dict(bad)
     assert info.value.field == "evolution"
+
+
+def test_end_effector_design_is_realized_with_a_certificate():
+    d = design.load_design(ASSETS / "shading-panel.json")
+    res = pipeline.result_to_dict(pipeline.solve(d))
+    ee = res["end_effector"]
+    rho = res["realization"]["radius"]
+    assert ee["min_clearance"] >= rho - 1e-12  # default required clearance is rho
+    assert all(p["min_distance"] >= p["required"] - 1e-12 for p in ee["pairs"])
+    # the end link is S_3 L + P + R E_3: L and R are vertices of the placed polyhedron
+    verts = np.array(ee["vertices"])
+    end = np.array(ee["end_link"])
+    assert np.min(np.linalg.norm(verts - end[1], axis=1)) < 1e-9
+    assert np.min(np.linalg.norm(verts - end[2], axis=1)) < 1e-9
+
+
+def test_end_effector_mesh_errors_reach_the_user(tmp_path):
+    from paraloop_core.errors import ParaloopError
+
+    data = json.loads((ASSETS / "shading-panel.json").read_text())
+    data["end_effector"]["mesh"] = "missing.stl"
+    path = tmp_path / "d.json"
+    path.write_text(json.dumps(data))
+    with pytest.raises(ParaloopError, match="not found"):
+        pipeline.solve(design.load_design(path))
