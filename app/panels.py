@@ -3,8 +3,10 @@
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import threading
+from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -55,14 +57,24 @@ def slider_to_mu(u: float) -> float | None:
     return None if np.isinf(t) else t
 
 
-def _handler(fn: Any) -> Any:
-    """Ignore events caused by :meth:`Panels.sync` in the same thread."""
+def handler(fn: Any) -> Any:
+    """Wrap a GUI callback so that it ignores events caused by :func:`writing_back`."""
 
     def wrapped(event: Any) -> None:
         if not getattr(_sync, "active", False):
             fn(event)
 
     return wrapped
+
+
+@contextlib.contextmanager
+def writing_back() -> Iterator[None]:
+    """Widget values set inside (worker thread) fire no :func:`handler`."""
+    _sync.active = True
+    try:
+        yield
+    finally:
+        _sync.active = False
 
 
 class Panels:
@@ -132,31 +144,31 @@ class Panels:
     def _connect(self) -> None:
         s = self.studio
         st = s.state
-        self.undo.on_click(_handler(lambda _: self._history(st.undo)))
-        self.redo.on_click(_handler(lambda _: self._history(st.redo)))
-        self.save.on_click(_handler(s.download_design))
-        self.export.on_click(_handler(s.download_export))
-        self.load.on_upload(_handler(s.upload_design))
-        self.name.on_update(_handler(lambda _: self._edit("name", name=self.name.value)))
-        self.add_pose.on_click(_handler(lambda _: self._add_pose()))
-        self.remove_pose.on_click(_handler(lambda _: self._remove_pose()))
-        self.method.on_update(_handler(lambda _: self._motion(method=self.method.value)))
-        self.family.on_update(_handler(lambda _: self._motion(family=int(self.family.value))))
-        self.mu.on_update(_handler(lambda _: self._motion(
+        self.undo.on_click(handler(lambda _: self._history(st.undo)))
+        self.redo.on_click(handler(lambda _: self._history(st.redo)))
+        self.save.on_click(handler(s.download_design))
+        self.export.on_click(handler(s.download_export))
+        self.load.on_upload(handler(s.upload_design))
+        self.name.on_update(handler(lambda _: self._edit("name", name=self.name.value)))
+        self.add_pose.on_click(handler(lambda _: self._add_pose()))
+        self.remove_pose.on_click(handler(lambda _: self._remove_pose()))
+        self.method.on_update(handler(lambda _: self._motion(method=self.method.value)))
+        self.family.on_update(handler(lambda _: self._motion(family=int(self.family.value))))
+        self.mu.on_update(handler(lambda _: self._motion(
             merge="mu", mu=slider_to_mu(self.mu.value), criterion=None)))
         if self.best_mu is not None:
-            self.best_mu.on_click(_handler(lambda _: self._motion(
+            self.best_mu.on_click(handler(lambda _: self._motion(
                 criterion=self.criterion.value)))
-        self.loop.on_update(_handler(lambda _: self._edit(
+        self.loop.on_update(handler(lambda _: self._edit(
             loop=int(self.loop.value.split(":")[0]))))
         for key, handle in self.real.items():
-            handle.on_update(_handler(lambda _, key=key: self._realization(key)))
-        self.u.on_update(_handler(lambda _: self._set_u(self.u.value)))
-        self.play.on_update(_handler(lambda _: setattr(st, "playing", self.play.value)))
-        self.speed.on_update(_handler(lambda _: setattr(st, "speed", self.speed.value)))
-        self.thickness.on_update(_handler(lambda _: self._thickness(self.thickness.value)))
+            handle.on_update(handler(lambda _, key=key: self._realization(key)))
+        self.u.on_update(handler(lambda _: self._set_u(self.u.value)))
+        self.play.on_update(handler(lambda _: setattr(st, "playing", self.play.value)))
+        self.speed.on_update(handler(lambda _: setattr(st, "speed", self.speed.value)))
+        self.thickness.on_update(handler(lambda _: self._thickness(self.thickness.value)))
         for name, box in self.layers.items():
-            box.on_update(_handler(lambda _, name=name, box=box: self._layer(name, box.value)))
+            box.on_update(handler(lambda _, name=name, box=box: self._layer(name, box.value)))
 
     def _history(self, step: Any) -> None:
         if step():
@@ -218,8 +230,7 @@ class Panels:
     # --- writing values back ----------------------------------------------------------------
     def sync(self, design: Design) -> None:
         """Show ``design``'s settings in the widgets (no handler fires)."""
-        _sync.active = True
-        try:
+        with writing_back():
             self.name.value = design.name
             n = len(design.poses)
             if len(self.locks) != n:
@@ -230,7 +241,7 @@ class Panels:
                     self.locks = [gui.add_checkbox(f"Lock S{i}", initial_value=False)
                                   for i in range(n)]
                 for i, h in enumerate(self.locks):
-                    h.on_update(_handler(lambda _, i=i, h=h: self._set_lock(i, h)))
+                    h.on_update(handler(lambda _, i=i, h=h: self._set_lock(i, h)))
                 self.pose_pick.options = tuple(f"S{i}" for i in range(n))
             for i, h in enumerate(self.locks):
                 h.value = i in design.locked
@@ -248,13 +259,10 @@ class Panels:
                     h.value = getattr(r, key) or 0.0
                 else:
                     h.value = getattr(r, key)
-        finally:
-            _sync.active = False
 
     def show_solution(self, sol: Any) -> None:
         """Loop picker labels with singularity values/status, and the mu actually used."""
-        _sync.active = True
-        try:
+        with writing_back():
             status = loop_status(sol.singularity)
             opts = tuple(loop_label(k, float(sol.singularity[k]), status[k]) for k in range(9))
             self.loop.options = opts
@@ -262,15 +270,10 @@ class Panels:
             self.mu_text.content = "mu = inf" if sol.mu is None else f"mu = {sol.mu:.4g}"
             if sol.design.motion.criterion is not None:
                 self.mu.value = mu_to_slider(sol.mu)
-        finally:
-            _sync.active = False
 
     def set_u(self, u: float) -> None:
-        _sync.active = True
-        try:
+        with writing_back():
             self.u.value = u
-        finally:
-            _sync.active = False
 
 
 def parse_fixed(text: str) -> dict[int, float]:

@@ -72,15 +72,3 @@ def register(validate_subparsers) -> None:
     p.add_argument("--out", default="out/fig16", help="output directory (PNG, CSV, JSON)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_evolution)
-
-
-def main(argv: list[str] | None = None) -> int:
-    """Stand-alone entry: ``python -m app.validate_evolution evolution --starts N``."""
-    parser = argparse.ArgumentParser(prog="paraloop validate")
-    register(parser.add_subparsers(dest="what", required=True))
-    args = parser.parse_args(argv)
-    return args.func(args)
-
-
-if __name__ == "__main__":
-    sys.exit(main())

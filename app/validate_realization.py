@@ -74,15 +74,3 @@ def register(validate_subparsers) -> None:
     p.add_argument("--csv", help="write one row per loop to this CSV file")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_realization)
-
-
-def main(argv: list[str] | None = None) -> int:
-    """Stand-alone entry: ``python -m app.validate_realization realization --motions N``."""
-    parser = argparse.ArgumentParser(prog="paraloop validate")
-    register(parser.add_subparsers(dest="what", required=True))
-    args = parser.parse_args(argv)
-    return args.func(args)
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -184,3 +184,11 @@ def test_bad_inputs_refused():
     with pytest.raises(FabricationError) as err:
         meshing.space_mesh(spaces[1].with_occupancy(np.pad(np.ones((2, 2, 2), bool), 1)))
     assert err.value.reason == "empty-space"
+
+
+def test_an_emptied_space_stays_empty_without_error():
+    _, pts, radius = example_loop()
+    sp = carve.capsule_space(pts[0], pts[1], radius, resolution=16)
+    empty = sp.with_occupancy(np.zeros_like(sp.occupancy))
+    jobs = [(sp.centers(), np.eye(4)[None])]
+    assert not carve._splat_remove(empty, empty.occupancy, jobs, radius).any()

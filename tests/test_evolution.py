@@ -199,9 +199,9 @@ def test_result_dict_and_parallel_workers_match():
 
 
 def test_validate_evolution_cli_writes_png_csv(tmp_path, capsys):
-    from app import validate_evolution
+    from app.cli import main
 
-    rc = validate_evolution.main(["evolution", "--starts", "3", "--targets", "6", "--workers",
+    rc = main(["validate", "evolution", "--starts", "3", "--targets", "6", "--workers",
                                   "1", "--max-iterations", "15", "--quiet",
                                   "--out", str(tmp_path)])
     assert rc == 0

@@ -164,10 +164,10 @@ def test_spherical_loop_is_singular():
 
 
 def test_validate_realization_cli(tmp_path, capsys):
-    from app import validate_realization
+    from app.cli import main
 
     csv_path = tmp_path / "rows.csv"
-    code = validate_realization.main(["realization", "--motions", "2", "--seed", "3",
+    code = main(["validate", "realization", "--motions", "2", "--seed", "3",
                                       "--workers", "1", "--csv", str(csv_path), "--quiet"])
     out = capsys.readouterr().out
     assert code == 0

@@ -13,6 +13,7 @@ import os
 import shutil
 import tempfile
 import time
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -38,6 +39,7 @@ from PIL import Image  # noqa: E402
 from viser import transforms as tf  # noqa: E402
 
 from app import studio as studio_mod  # noqa: E402
+from app.worker import FULL  # noqa: E402
 from paraloop_core import design as design_mod  # noqa: E402
 
 DESIGN = Path(__file__).resolve().parent.parent / "assets" / "designs" / "tv8.json"
@@ -215,3 +217,26 @@ def test_broken_upload_shows_error_and_keeps_design(app, page, tmp_path):
     page.get_by_text("Cannot load broken.json").first.wait_for(timeout=10_000)
     assert app.state.design is before
     assert app.solution is not None and app.error is None
+
+
+def test_fabrication_export_zip_download(app, page):
+    # back to the example (earlier tests moved S3 and picked a loop whose motion is too close
+    # to a singular pose to bound its speed, which the export refuses with a notification)
+    app.state.commit(design_mod.load_design(DESIGN))
+    app.request(FULL, sync=True)
+    assert app.worker.wait_idle(30) and app.solution.realization is not None
+    page.get_by_text("Fabrication", exact=True).click()  # the folder starts collapsed
+    button = page.get_by_role("button", name="Export all (zip)")
+    button.wait_for(timeout=10_000)
+    try:
+        with page.expect_download(timeout=60_000) as dl:
+            button.click()
+    except playwright_sync.TimeoutError:
+        pytest.fail(f"no download; last notifications: {app.notifications[-3:]}")
+    assert dl.value.suggested_filename.startswith("paraloop-")
+    with zipfile.ZipFile(dl.value.path()) as zf:
+        names = set(zf.namelist())
+        report = json.loads(zf.read("report.json"))
+    assert {"paraloop-result.json", "link_0.stl", "paraloop.3mf", "assembly.glb"} <= names
+    assert report["verification"]["ok"]
+    page.get_by_text("Verification: ok").first.wait_for(timeout=10_000)

@@ -107,3 +107,12 @@ def test_cli_reports_a_bad_file(tmp_path, capsys):
     bad.write_text("{")
     assert studio_mod.main([str(bad), "--port", "0"]) == 2
     assert capsys.readouterr().err.startswith("error: file: not valid JSON")
+
+
+def test_fabrication_tasks_queue_once():
+    st = StudioState(design_mod.load_design(DESIGN))
+    st.add_task("carve", "a")
+    st.add_task("export", "b")
+    st.add_task("carve", "c")  # pressed again: runs once, for the last client
+    assert st.take_tasks() == [("export", "b"), ("carve", "c")]
+    assert st.take_tasks() == []

@@ -1,0 +1,197 @@
+"""Headless tests of the studio's Fabrication folder: settings validation, carving design
+spaces in the worker (meshes, animation, the bound text), the export zip and its failures."""
+
+from __future__ import annotations
+
+import io
+import json
+import time
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+import viser
+from test_studio_server import click, gizmo, settle
+
+from app import studio as studio_mod
+from app.exports import carve_order, parse_order
+from app.fabrication_panel import check_setting
+from app.state import FabSettings
+from paraloop_core import design as design_mod
+from paraloop_core import dq, loops, poly
+
+DESIGNS = Path(__file__).resolve().parent.parent / "assets" / "designs"
+PART_FILES = {f"link_{i}.stl" for i in range(6)} | {"paraloop.3mf", "assembly.glb",
+                                                     "report.json", "paraloop-result.json"}
+
+
+def open_studio(name: str):
+    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    app = studio_mod.Studio(server, design_mod.load_design(DESIGNS / f"{name}.json"), None)
+    settle(app)
+    return server, app
+
+
+@pytest.fixture
+def tv8():
+    server, app = open_studio("tv8")
+    yield app
+    app.close()
+    server.stop()
+
+
+@pytest.fixture
+def sun():
+    server, app = open_studio("sun-disc")
+    yield app
+    app.close()
+    server.stop()
+
+
+def wait_long(app, seconds: float = 120.0) -> None:
+    assert app.worker.wait_idle(seconds)
+
+
+def test_settings_are_validated(tv8):
+    inputs = tv8.fabrication.inputs
+    inputs["size_mm"].value = -5.0
+    title, body, error = tv8.notifications[-1]
+    assert error and "size must be > 0" in body and tv8.state.fab.size_mm == 400.0
+    settle(tv8)
+    assert inputs["size_mm"].value == 400.0  # the kept value is written back
+    inputs["clearance_mm"].value = -0.1
+    assert tv8.notifications[-1][2] and tv8.state.fab.clearance_mm == 0.3
+    inputs["clearance_mm"].value = 0.0
+    inputs["size_mm"].value = 250.0
+    inputs["print_in_place"].value = True
+    assert tv8.state.fab == FabSettings(size_mm=250.0, clearance_mm=0.0, print_in_place=True)
+    inputs["custom_order"].value = "0-1, 1-0"
+    assert "twice" in tv8.notifications[-1][1] and tv8.state.fab.custom_order == ""
+
+
+def test_order_presets_and_parsing():
+    for preset in ("base first", "end first"):
+        pairs = carve_order(FabSettings(order=preset))
+        assert len({frozenset(p) for p in pairs}) == 15
+    assert carve_order(FabSettings(order="end first"))[0] == (3, 2)
+    text = ", ".join(f"{b}-{a}" for a in range(6) for b in range(a + 1, 6))
+    assert parse_order(text)[0] == (1, 0)
+    for bad, why in (("0-1", "all 15"), ("0-0", "differ"), ("0+1", "target-source")):
+        with pytest.raises(ValueError, match=why):
+            parse_order(bad)
+    with pytest.raises(ValueError, match="16..256"):
+        check_setting("resolution", 8)
+    assert check_setting("space_radius_mm", "0") == 0.0
+
+
+def test_carve_draws_animated_spaces_and_the_bound(sun):
+    fab = sun.fabrication
+    t0 = time.perf_counter()
+    click(fab.carve)
+    wait_long(sun)
+    seconds = time.perf_counter() - t0
+    scene = sun.scene
+    assert len(scene.spaces) == 6 and all(h.visible for _, h in scene.spaces), sun.notifications
+    assert "Continuous-motion bound" in fab.bound.content and " mm at 400 mm" in fab.bound.content
+    assert "approximate" in fab.bound.content
+    margin = fab.carving["max_motion_margin"]
+    assert margin > 0 and f"{margin:.3g}" in fab.bound.content
+    fractions = [f for _, f in fab.progress_log]
+    assert fractions[-1] == 1.0 and fractions == sorted(fractions) and len(fractions) > 5
+    assert not fab.progress.visible and seconds < 60
+    # the spaces move with their links (motion slider)
+    sun.panels.u.value = 0.37
+    settle(sun)
+    links = loops.link_poses(sun.solution.loop.joint_factors, poly.param_to_t(np.array([0.37])))
+    pos, wxyz = dq.to_pos_wxyz(links[0])
+    for i, handle in scene.spaces:
+        assert np.allclose(handle.position, pos[i], atol=1e-5)
+        assert np.allclose(np.abs(handle.wxyz @ wxyz[i]), 1.0, atol=1e-5)
+    fab.show.value = False
+    settle(sun)
+    assert not any(h.visible for _, h in scene.spaces)
+    fab.show.value = True
+    settle(sun)
+    assert all(h.visible for _, h in scene.spaces)
+    # a new loop makes them stale: hidden until carved again
+    gizmo(sun, 3, position=sun.state.design.poses[3].position + 0.02)
+    assert sun.error is None and not any(h.visible for _, h in scene.spaces)
+
+
+def test_carving_is_cancelled_by_a_design_edit(tv8):
+    tv8.fabrication.inputs["resolution"].value = 32
+    click(tv8.fabrication.carve)
+    end = time.monotonic() + 30
+    while not tv8.fabrication.progress_log and time.monotonic() < end:
+        time.sleep(0.01)
+    p = tv8.state.design.poses[3]
+    assert tv8.state.move_pose(3, p.position + 0.01, p.wxyz, commit=True)
+    wait_long(tv8)
+    assert any(t == "Carving cancelled" for t, _, _ in tv8.notifications)
+    assert not tv8.scene.spaces and tv8.error is None
+
+
+def test_export_zip_has_parts_and_a_verified_report(tv8):
+    t0 = time.perf_counter()
+    click(tv8.fabrication.export)
+    wait_long(tv8)
+    seconds = time.perf_counter() - t0
+    name, data = tv8.downloads[-1]
+    assert name.startswith("paraloop-TV8") and name.endswith(".zip"), tv8.notifications
+    with zipfile.ZipFile(io.BytesIO(data)) as zf:
+        assert set(zf.namelist()) == PART_FILES
+        report = json.loads(zf.read("report.json"))
+        result = json.loads(zf.read("paraloop-result.json"))
+        assert zf.read("assembly.glb")[:4] == b"glTF" and len(zf.read("link_0.stl")) > 1000
+    assert result["format"] == "paraloop-result"
+    ver = report["verification"]
+    assert ver["ok"] and report["spec"]["size_mm"] == 400.0
+    assert tv8.fabrication.report == report
+    text = tv8.fabrication.verification.content
+    assert "ok" in text and f"{ver['min_gap_mm']:.3f} mm" in text
+    assert seconds < 60
+
+
+def test_export_failures_keep_the_design(tv8):
+    before, sol = tv8.state.design, tv8.solution
+    n = len(tv8.downloads)
+    tv8.fabrication.inputs["size_mm"].value = 50.0  # valid input, too small for the bars
+    click(tv8.fabrication.export)
+    wait_long(tv8)
+    title, body, error = tv8.notifications[-1]
+    assert error and title == "Export failed" and "size of at least" in body
+    tv8.fabrication.inputs["size_mm"].value = 400.0
+    tv8.fabrication.inputs["ground"].value = True  # no grounding column fits this design
+    click(tv8.fabrication.export)
+    wait_long(tv8)
+    title, body, error = tv8.notifications[-1]
+    assert error and title == "Export failed" and "grounding" in body
+    assert len(tv8.downloads) == n and not tv8.fabrication.progress.visible
+    assert tv8.state.design is before and tv8.solution is sol and tv8.error is None
+    # without a realization: the result JSON only, and a notification saying so
+    tv8.panels.real["enabled"].value = False
+    settle(tv8)
+    click(tv8.fabrication.export)
+    wait_long(tv8)
+    name, data = tv8.downloads[-1]
+    assert zipfile.ZipFile(io.BytesIO(data)).namelist() == ["paraloop-result.json"]
+    assert tv8.notifications[-1][0] == "Exported the result only"
+    click(tv8.fabrication.carve)
+    wait_long(tv8)
+    assert "no realization" in tv8.notifications[-1][1] and not tv8.scene.spaces
+
+
+def test_export_with_carved_parts(sun):
+    inputs = sun.fabrication.inputs
+    inputs["resolution"].value = 64
+    inputs["order"].value = "end first"
+    inputs["carved_parts"].value = True
+    click(sun.fabrication.export)
+    wait_long(sun)
+    report = sun.fabrication.report
+    assert report is not None, sun.notifications
+    assert report["verification"]["ok"] and sum(report["carving"]["meshed"]) >= 4
+    pairs = [(o["target"], o["source"]) for o in report["carving"]["operations"]
+             if o["kind"] == "pair"]
+    assert pairs[:2] == [(3, 2), (3, 4)]
