@@ -15,6 +15,7 @@ import viser
 from paraloop_core import factor, loops, poly
 from paraloop_core.design import CRITERIA, METHODS, Design
 
+from .evolution_panel import EvolutionPanel
 from .scene import FACTOR_COLOR_NAMES, LAYERS
 from .worker import FRAME, FULL
 
@@ -109,6 +110,7 @@ class Panels:
             if criteria:
                 self.criterion = gui.add_dropdown("Criterion", CRITERIA, initial_value="length")
                 self.best_mu = gui.add_button("Best mu")
+        self.evolution = EvolutionPanel(gui, self._evolution, handler)
         with gui.add_folder("Loop"):
             self.loop = gui.add_dropdown("Loop", tuple(loop_label(k) for k in range(9)))
             legend = ", ".join(f"{c} {order_name(j)}" for j, c in enumerate(FACTOR_COLOR_NAMES))
@@ -183,6 +185,11 @@ class Panels:
             d, motion=dataclasses.replace(d.motion, **changes)), merge)
         self.studio.request(FULL)
 
+    def _evolution(self, key: str, value: Any) -> None:
+        self.studio.state.edit(lambda d: dataclasses.replace(
+            d, evolution={**d.evolution, key: value}), key)
+        self.studio.request(FULL)
+
     def _realization(self, key: str) -> None:
         h = self.real[key]
         if key == "fixed":
@@ -251,6 +258,7 @@ class Panels:
             if self.criterion is not None and m.criterion is not None:
                 self.criterion.value = m.criterion
             self.loop.value = self.loop.options[design.loop]
+            self.evolution.sync(design)
             r = design.realization
             for key, h in self.real.items():
                 if key == "fixed":
@@ -268,6 +276,7 @@ class Panels:
             self.loop.options = opts
             self.loop.value = opts[sol.design.loop]
             self.mu_text.content = "mu = inf" if sol.mu is None else f"mu = {sol.mu:.4g}"
+            self.evolution.show(sol.fit)
             if sol.design.motion.criterion is not None:
                 self.mu.value = mu_to_slider(sol.mu)
 

@@ -35,7 +35,7 @@ PATH_COLOR = (40, 40, 70)
 #: View layers (GUI checkboxes) and the scene handles they show.
 LAYERS = {"Trajectory": ("path",), "Moving frames": ("frames",),
           "Inertia ellipsoid": ("ellipsoid",), "Factorization axes": ("facts",),
-          "Loop axes": ("axes",), "Linkage": ("bars", "joints")}
+          "Loop axes": ("axes",), "Linkage": ("bars", "joints", "effector")}
 #: The carved design spaces' layer (toggled in the Fabrication panel) and their colours.
 SPACES_LAYER = "Design spaces"
 SPACE_COLORS = np.vstack([LINK_COLORS[:1], FACTOR_COLORS[:5]])
@@ -94,6 +94,7 @@ class SceneView:
         self.motion: np.ndarray | None = None
         self.spaces: list[tuple[int, Any]] = []  # (link, mesh handle) of carved spaces
         self.spaces_jf: np.ndarray | None = None  # the loop they were carved for
+        self.end_link: np.ndarray | None = None  # (4, 3) S_3, L, R, E_3 with an end-effector
 
     # --- targets ----------------------------------------------------------------------------
     def set_targets(self, design: Design) -> None:
@@ -230,6 +231,24 @@ class SceneView:
         f, g = loop.factorizations
         colors = np.repeat(FACTOR_COLORS[[f, g]], 3, axis=0)[:, None, :].repeat(2, axis=1)
         self.loop_colors = colors
+        self._set_effector(sol)
+
+    def _set_effector(self, sol: Any) -> None:
+        """The end-effector P (home vertices, world frame) moving with link 3, and the end
+        link's path S_3 L + P + R E_3 replacing the bar S_3 E_3 (Sec. 5.1)."""
+        ee = getattr(sol, "end_effector", None)
+        old = self.handles.pop("effector", None)
+        if old is not None:
+            old.remove()
+        if (ee is None) != (self.end_link is None):  # the bar count changes: rebuild
+            for key in ("bars", "joints", "axes"):
+                if key in self.handles:
+                    self.handles.pop(key).remove()
+        self.end_link = None if ee is None else ee.end_link()
+        if ee is not None:
+            self.handles["effector"] = self.server.scene.add_mesh_simple(
+                "/loop/effector", ee.effector.vertices.astype(np.float32),
+                ee.effector.faces.astype(np.uint32), color=(250, 200, 40), side="double")
 
     def draw_frame(self, u: float, thickness: float = 1.0) -> None:
         """Pose the animated frame, the loop's axes and the linkage at ``t = param_to_t(u)``;
@@ -254,14 +273,22 @@ class SceneView:
         s_next = np.roll(pts[0::2], -1, axis=0)  # S_{i+1} on A_i
         axis_segs = axis_segments(axes, 0.5 * (e + s_next), 0.6 * self.scale)
         r = self.bar_radius * thickness
-        bar_p, bar_q, bar_s = self._cylinders(pts[0::2], e, r, r)
+        starts, ends, bar_colors = pts[0::2], e, LINK_COLORS
+        if self.end_link is not None:  # end link: S_3 -> L and R -> E_3 around P
+            end = dq.transform_points(links[3], self.end_link)
+            starts = np.vstack([starts[:3], end[[0, 2]], starts[4:]])
+            ends = np.vstack([ends[:2], [ends[2], end[1], ends[3]], ends[4:]])
+            bar_colors = np.vstack([LINK_COLORS[:4], LINK_COLORS[3:]])
+            pose, wxyz = dq.to_pos_wxyz(links[3])
+            h["effector"].position, h["effector"].wxyz = pose, wxyz
+        bar_p, bar_q, bar_s = self._cylinders(starts, ends, r, r)
         joint_p, joint_q, joint_s = self._cylinders(e, s_next, 1.8 * r, 6.0 * r, axes[:, :3])
         if "bars" not in h:
             h["axes"] = scene.add_line_segments("/loop/axes", axis_segs, self.loop_colors,
                                                 thickness=4.0, thickness_units="screen")
             h["bars"] = scene.add_batched_meshes_simple(
                 "/loop/bars", _CYL.vertices, _CYL.faces, bar_q, bar_p, batched_scales=bar_s,
-                batched_colors=LINK_COLORS, lod="off")
+                batched_colors=bar_colors, lod="off")
             h["joints"] = scene.add_batched_meshes_simple(
                 "/loop/joints", _CYL.vertices, _CYL.faces, joint_q, joint_p,
                 batched_scales=joint_s, batched_colors=JOINT_COLOR, lod="off")
