@@ -15,6 +15,7 @@ import viser
 from paraloop_core import factor, loops, poly
 from paraloop_core.design import CRITERIA, METHODS, Design
 
+from .effector_panel import EffectorPanel
 from .evolution_panel import EvolutionPanel
 from .scene import FACTOR_COLOR_NAMES, LAYERS
 from .worker import FRAME, FULL
@@ -131,6 +132,7 @@ class Panels:
                                           step=0.01)
                 r["fixed"] = gui.add_text("Fixed vertices", initial_value="",
                                           hint="vertex=offset pairs, e.g. 0=0.1, 3=-0.2")
+        self.effector = EffectorPanel(gui, studio, handler)
         with gui.add_folder("Animation"):
             self.u = gui.add_slider("u", min=0.0, max=1.0, step=0.001, initial_value=0.0)
             self.play = gui.add_checkbox("Play", initial_value=False)
@@ -259,6 +261,7 @@ class Panels:
                 self.criterion.value = m.criterion
             self.loop.value = self.loop.options[design.loop]
             self.evolution.sync(design)
+            self.effector.sync(design)
             r = design.realization
             for key, h in self.real.items():
                 if key == "fixed":
@@ -277,6 +280,7 @@ class Panels:
             self.loop.value = opts[sol.design.loop]
             self.mu_text.content = "mu = inf" if sol.mu is None else f"mu = {sol.mu:.4g}"
             self.evolution.show(sol.fit)
+            self.effector.show(sol)
             if sol.design.motion.criterion is not None:
                 self.mu.value = mu_to_slider(sol.mu)
 

@@ -22,14 +22,28 @@ HISTORY = 200
 MERGE_SECONDS = 1.5
 
 
+def user_data_dir() -> Path:
+    """The user data folder: ``$XDG_DATA_HOME/paraloop`` or ``~/.local/share/paraloop``."""
+    return Path(os.environ.get("XDG_DATA_HOME") or Path.home() / ".local" / "share") / "paraloop"
+
+
 def autosave_path_for(design_path: Path | None, name: str) -> Path:
     """``<stem>.autosave.json`` next to a writable opened design, else in the user data folder
-    (``$XDG_DATA_HOME/paraloop/autosave`` or ``~/.local/share/paraloop/autosave``)."""
+    (``autosave/<name>.json``)."""
     if design_path is not None and os.access(design_path.parent, os.W_OK):
         return design_path.with_name(design_path.stem + ".autosave.json")
-    base = Path(os.environ.get("XDG_DATA_HOME") or Path.home() / ".local" / "share")
     safe = "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in name) or "untitled"
-    return base / "paraloop" / "autosave" / f"{safe}.json"
+    return user_data_dir() / "autosave" / f"{safe}.json"
+
+
+def absolute_mesh(design: Design) -> Design:
+    """``design`` with a relative end-effector mesh path made absolute (against ``base_dir``),
+    so a copy saved anywhere still finds the mesh."""
+    ee = design.end_effector
+    if ee is None or ee.mesh is None or Path(ee.mesh).is_absolute():
+        return design
+    mesh = str((Path(design.base_dir or ".") / ee.mesh).resolve())
+    return dataclasses.replace(design, end_effector=dataclasses.replace(ee, mesh=mesh))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -71,7 +85,7 @@ class StudioState:
         self.hidden: set[str] = set()  # view layers switched off
         self.thickness = 1.0  # bars drawn this many times their radius
         self.fab = FabSettings()
-        self.tasks: dict[str, Any] = {}  # fabrication task ("carve", "export") -> client
+        self.tasks: dict[str, Any] = {}  # worker task ("carve", "export", "mesh") -> argument
         self._merge_key: str | None = None
         self._merge_time = 0.0
 
@@ -165,16 +179,16 @@ class StudioState:
                                             locked=locked))
             return True
 
-    # --- fabrication tasks ------------------------------------------------------------------
-    def add_task(self, name: str, client: Any = None) -> None:
-        """Queue a fabrication task for the worker (pressed twice: runs once, for the last
-        ``client``, who gets its download)."""
+    # --- worker tasks -----------------------------------------------------------------------
+    def add_task(self, name: str, arg: Any = None) -> None:
+        """Queue a task for the worker (asked twice: runs once, with the last ``arg``: the
+        client who gets a fabrication download, the path of an uploaded mesh)."""
         with self._lock:
             self.tasks.pop(name, None)
-            self.tasks[name] = client
+            self.tasks[name] = arg
 
     def take_tasks(self) -> list[tuple[str, Any]]:
-        """The queued ``(task, client)``, oldest first; the queue is emptied."""
+        """The queued ``(task, arg)``, oldest first; the queue is emptied."""
         with self._lock:
             out, self.tasks = list(self.tasks.items()), {}
             return out
@@ -187,6 +201,6 @@ class StudioState:
                 return False
             design, version = self.committed, self.version
         self.autosave_path.parent.mkdir(parents=True, exist_ok=True)
-        design_mod.save_design(design, self.autosave_path)
+        design_mod.save_design(absolute_mesh(design), self.autosave_path)
         self.saved_version = version
         return True

@@ -35,7 +35,7 @@ from .fabrication_panel import FabricationPanel
 from .panels import Panels
 from .plots import Plots
 from .scene import SceneView, design_scale
-from .state import StudioState, autosave_path_for
+from .state import StudioState, absolute_mesh, autosave_path_for
 from .worker import FRAME, FULL, PREVIEW, NewestWorker
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "assets" / "designs"
@@ -110,7 +110,7 @@ class Studio:
 
     def download_design(self, event: Any) -> None:
         design = self.state.design
-        data = json.dumps(design_mod.design_to_dict(design), indent=2) + "\n"
+        data = json.dumps(design_mod.design_to_dict(absolute_mesh(design)), indent=2) + "\n"
         self.send_file(event.client, f"{slug(design.name)}.json", data.encode("utf-8"))
 
     def download_export(self, event: Any) -> None:
@@ -162,8 +162,11 @@ class Studio:
     def _job(self, level: int) -> None:
         try:
             self._update(level)
-            for task, client in self.state.take_tasks():  # carve / export, after the update
-                self.fabrication.run(task, client)
+            for task, arg in self.state.take_tasks():  # after the update
+                if task == "mesh":
+                    self.panels.effector.check_mesh(arg)
+                else:  # carve / export
+                    self.fabrication.run(task, arg)
         except Exception as exc:  # a bug, not bad input: keep serving and say so
             traceback.print_exc()
             self.notify("Internal error", f"{exc!r} (see the server log)", error=True)
@@ -201,7 +204,7 @@ class Studio:
                 motion = dataclasses.replace(m, criterion=None, mu=self.solution.mu)
                 design = dataclasses.replace(design, motion=motion)
             return pipeline.solve(design, realize=False), ""
-        data = design_mod.design_to_dict(design)
+        data = design_mod.design_to_dict(absolute_mesh(design))  # a mesh path per file
         del data["name"], data["locked"]  # neither changes the solution
         key = json.dumps(data, sort_keys=True)
         if key not in self._cache:

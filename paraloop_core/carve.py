@@ -241,6 +241,18 @@ def _sweep_jobs(jf: np.ndarray, a: int, b: int, target: VoxelSpace, boundary: np
     return [(boundary, mats), (interior, mats[:1])], len(u)
 
 
+def _solid_jobs(jf: np.ndarray, a: int, b: int, target: VoxelSpace, src: VoxelSpace,
+                delta: float) -> tuple[list, int, float]:
+    """Splat jobs of the sweep of the region of ``src`` (a solid of link b) in link a's grid,
+    their sample count and the removal reach (design units): time margin + source ball +
+    rounding to a target centre + target ball."""
+    occ = src.occupancy
+    bnd = occ & ~ndimage.binary_erosion(occ, np.ones((3, 3, 3), bool))
+    jobs, nt = _sweep_jobs(jf, a, b, target, np.argwhere(bnd) * src.pitch,
+                           np.argwhere(occ) * src.pitch, src.frame, delta * target.pitch)
+    return jobs, nt, delta * target.pitch + src.half_diagonal + 2 * target.half_diagonal
+
+
 #: Default carving order: (target, source) pairs, the base link carved first.
 DEFAULT_ORDER = tuple((a, b) for a in range(6) for b in range(a + 1, 6))
 
@@ -287,9 +299,17 @@ def _clip_to_zones(spaces: list[VoxelSpace], zones: Sequence[JointZone]) -> list
 def carve(joint_factors: np.ndarray, points: np.ndarray, spaces: Sequence[VoxelSpace], *,
           keep_radius: float, joint_radius: float | None = None,
           order: Sequence[tuple[int, int]] = DEFAULT_ORDER, delta: float = 1.0,
+          bars: Sequence[np.ndarray | None] | None = None,
+          fixed: Sequence[tuple[int, VoxelSpace]] = (),
           progress: Progress | None = None) -> Carving:
     """Sec. 5.2: clip the spaces at the joint zones, wire-cut each by the other moving bars,
-    then carve target a by the sweep of source b for each ``(a, b)`` in ``order``.
+    carve every link by the sweep of the ``fixed`` solids of the others, then carve target a by
+    the sweep of source b for each ``(a, b)`` in ``order``.
+
+    ``bars``: per link, None (its bar ``S_i E_i``) or segments ``(n, 2, 3)`` replacing it (the
+    end link ``S_3 L``, ``R E_3``). ``fixed``: ``(link, solid)`` pairs, regions rigidly attached
+    to a link and never carved (an end-effector P), removed with their sweep from every other
+    link before the pairwise differences, so no order can carve them.
 
     ``keep_radius`` (design units): bar radius to keep clear in the wire cut (the bar survives
     the later differences). ``joint_radius`` (default ``1.25 keep_radius``) sizes the joint
@@ -312,12 +332,14 @@ def carve(joint_factors: np.ndarray, points: np.ndarray, spaces: Sequence[VoxelS
     for i, sp in enumerate(spaces):
         if not sp.occupancy.any():
             raise FabricationError(f"design space of link {i} is empty", "empty-space")
+    segs = [pts[[2 * i, 2 * i + 1]][None] if bars is None or bars[i] is None
+            else np.asarray(bars[i], float).reshape(-1, 2, 3) for i in range(6)]
     zones = joint_zones(jf, pts, joint_radius or 1.25 * keep_radius)
     cur = _clip_to_zones(list(spaces), zones)
     prot = {(a, j): _zone_mask(cur[a], zones[j], up, True)
             for a in range(6) for j, up in ((a, False), ((a - 1) % 6, True))}
     groups = _pair_groups(pairs)
-    n_ops, done, ops = 6 + len(groups), 0, []
+    n_ops, done, ops = 6 + len(fixed) + len(groups), 0, []
     t_start = time.perf_counter()
 
     def tick(msg: str) -> None:
@@ -333,9 +355,8 @@ def carve(joint_factors: np.ndarray, points: np.ndarray, spaces: Sequence[VoxelS
         sp, jobs = cur[a], []
         sigma = sp.pitch / 2
         for b in [x for x in range(6) if x != a]:
-            p0, p1 = pts[2 * b], pts[2 * b + 1]
-            seg = p0 + np.linspace(0, 1, int(np.linalg.norm(p1 - p0) / sigma) + 2)[:, None] \
-                * (p1 - p0)
+            seg = np.concatenate([p0 + np.linspace(0, 1, int(np.linalg.norm(p1 - p0) / sigma)
+                                                   + 2)[:, None] * (p1 - p0) for p0, p1 in segs[b]])
             if (sj := _shared_joint(a, b)) is not None:  # inside b's own half: never meets a
                 seg = seg[~zones[sj[0]].inside_half(seg, not sj[1], sigma)]
             if len(seg):
@@ -346,6 +367,15 @@ def carve(joint_factors: np.ndarray, points: np.ndarray, spaces: Sequence[VoxelS
         reach = delta * sp.pitch + sigma / 2 + extra + 2 * sp.half_diagonal
         cur[a] = sp.with_occupancy(_splat_remove(sp, keep, jobs, reach))
         done += 1
+    for f, solid in fixed:
+        tick(f"carving the other links by the sweep of link {f}'s fixed solid")
+        for a in (x for x in range(6) if x != f):
+            jobs, nt, reach = _solid_jobs(jf, a, f, cur[a], solid, delta)
+            cur[a] = cur[a].with_occupancy(
+                _splat_remove(cur[a], np.zeros_like(cur[a].occupancy), jobs, reach))
+            ops.append({"kind": "fixed", "target": a, "source": f, "samples": nt,
+                        "motion_margin": delta * cur[a].pitch})
+        done += 1
     for a, joint, sources in groups:
         tick(f"carving link {a} by the sweep of links {sources}")
         keep = np.zeros_like(cur[a].occupancy) if joint is None else prot[(a, joint)]
@@ -354,14 +384,9 @@ def carve(joint_factors: np.ndarray, points: np.ndarray, spaces: Sequence[VoxelS
             src = cur[b].occupancy if joint is None else cur[b].occupancy & ~prot[(b, joint)]
             if not src.any():
                 continue
-            bnd = src & ~ndimage.binary_erosion(src, np.ones((3, 3, 3), bool))
-            pb = cur[b].pitch
-            new, nt = _sweep_jobs(jf, a, b, cur[a], np.argwhere(bnd) * pb,
-                                  np.argwhere(src) * pb, cur[b].frame, delta * cur[a].pitch)
+            new, nt, r = _solid_jobs(jf, a, b, cur[a], cur[b].with_occupancy(src), delta)
             jobs += new
-            # time margin + source ball + rounding to a target centre + target ball
-            reach = max(reach, delta * cur[a].pitch + cur[b].half_diagonal
-                        + 2 * cur[a].half_diagonal)
+            reach = max(reach, r)
             ops.append({"kind": "pair", "target": a, "source": b, "samples": nt,
                         "motion_margin": delta * cur[a].pitch})
         if jobs:
@@ -381,8 +406,7 @@ def carve(joint_factors: np.ndarray, points: np.ndarray, spaces: Sequence[VoxelS
         "max_motion_margin": delta * max(sp.pitch for sp in cur),
         "voxels": [int(sp.occupancy.sum()) for sp in cur],
         "pitch": [sp.pitch for sp in cur],
-        "bar_kept": [_bar_kept(sp, pts[2 * i], pts[2 * i + 1], keep_radius, zones, i)
-                     for i, sp in enumerate(cur)],
+        "bar_kept": [_bar_kept(sp, segs[i], keep_radius, zones, i) for i, sp in enumerate(cur)],
         "operations": ops,
     }
     if progress is not None:
@@ -404,14 +428,15 @@ def _pair_groups(pairs: Sequence[tuple[int, int]]) -> list[tuple[int, int | None
     return out
 
 
-def _bar_kept(sp: VoxelSpace, p0: np.ndarray, p1: np.ndarray, keep_radius: float,
+def _bar_kept(sp: VoxelSpace, segs: np.ndarray, keep_radius: float,
               zones: Sequence[JointZone], i: int) -> float:
-    """Fraction of the grid centres within ``keep_radius`` of the bar (outside the neighbours'
-    joint-zone halves) that are still occupied."""
+    """Fraction of the grid centres within ``keep_radius`` of the bars ``segs`` ``(n, 2, 3)``
+    (outside the neighbours' joint-zone halves) that are still occupied."""
     box = np.zeros_like(sp.occupancy)
-    box[_index_box(sp, np.stack([p0, p1]), keep_radius)] = True
+    box[_index_box(sp, segs.reshape(-1, 3), keep_radius)] = True
     core = np.zeros_like(box)
-    core[box] = point_segment_distance(sp.centers(box), p0, p1) <= keep_radius
+    c = sp.centers(box)
+    core[box] = np.min([point_segment_distance(c, p0, p1) for p0, p1 in segs], 0) <= keep_radius
     near = sp.with_occupancy(core)
     core &= ~(_zone_mask(near, zones[i], True, False)
               | _zone_mask(near, zones[(i - 1) % 6], False, False))

@@ -141,7 +141,7 @@ def four_pose_guess(prob: Problem, world: np.ndarray, indices: tuple[int, ...],
 def _score_interpolants(prob: Problem, c: np.ndarray, ordered: bool):
     """Factors ``(K, 3, 8)`` and cost ``(K,)`` of candidate cubics ``(K, 4, 8)``: summed squared
     closest distances, inf where not factorizable (or, if any is, not in order)."""
-    t, d2 = closest.closest_pose(c[:, None], prob.targets[None, 1:], prob.inertia)
+    t, d2 = closest.closest_pose(c[:, None], prob.targets[None, 1:], prob.inertia, robust=False)
     quads, code = factor.norm_quadratics_batch(c)
     h, hcode = factor.factorize_batch(c, quads)
     cost = np.where((code == 0) & (hcode == 0), np.sum(d2, -1), np.inf)

@@ -305,7 +305,7 @@ def evolve_start(prob: Problem, settings: EvolutionSettings, h0: np.ndarray, ind
             status = "degenerate"
             break
         c = motion(h, frame)
-        t_all, d2 = closest.closest_pose(c, prob.targets, prob.inertia)
+        t_all, d2 = closest.closest_pose(c, prob.targets, prob.inertia, robust=False)
         free = settings.free_reference and stage == "final"
         if not free:
             t_all[0], d2[0] = np.inf, 0.0
@@ -332,7 +332,7 @@ def evolve_start(prob: Problem, settings: EvolutionSettings, h0: np.ndarray, ind
         free = settings.free_reference and stage == "final"
         weight = 1.0 if stage == "final" else w
         inertia_w = prob.inertia.with_weight(prob.inertia.weight * weight)
-        t_w, _ = closest.closest_pose(motion(h, frame), prob.guides, inertia_w)
+        t_w, _ = closest.closest_pose(motion(h, frame), prob.guides, inertia_w, robust=False)
         proportional = stage == "initial" or loop_fix
         if proportional:
             t_g = np.r_[t_w[0] if free else np.inf,

@@ -203,13 +203,14 @@ def _hardware(z: Zone, spec: PartSpec, upper: bool) -> list[tuple]:
 def build_assembly(joint_factors: np.ndarray, points: np.ndarray, radius: float,
                    spec: PartSpec = PartSpec(), bodies: list[np.ndarray] | None = None,
                    extras: dict[int, list[tuple[m3d.Manifold, np.ndarray, float]]] | None = None,
-                   ) -> Assembly:
+                   end_link: tuple[np.ndarray, m3d.Manifold] | None = None) -> Assembly:
     """Six parts from the loop ``joint_factors`` ``(6, 8)``, polyline ``points`` ``(12, 3)``
     and bar ``radius`` (design units). ``bodies``: optional carved bodies per link as
     ``(vertices (V, 3) design units, faces)`` pairs, joined with the bar (None: bar only).
     ``extras``: per link, additional solids in mm with a bounding capsule ``(2, 3)`` and radius
-    (grounding).
-    Every part is checked to be a valid, non-empty manifold."""
+    (grounding). ``end_link``: link 3's bars ``(n, 2, 3)`` (design units; replacing ``S_3 E_3``)
+    and a solid in mm joined with them (the end-effector P, :mod:`endlink`), bounded by
+    :func:`principal_capsules`. Every part is checked to be a valid, non-empty manifold."""
     jf = np.asarray(joint_factors, float)
     pts = np.asarray(points, float)
     if jf.shape != (6, 8) or pts.shape != (12, 3) or not np.all(np.isfinite(pts)):
@@ -223,8 +224,13 @@ def build_assembly(joint_factors: np.ndarray, points: np.ndarray, radius: float,
     parts = []
     for i in range(6):
         s_i, e_i = pmm[2 * i], pmm[2 * i + 1]
-        body = capsule(s_i, e_i, spec.rho_mm, n)
-        caps = [(s_i, e_i, spec.rho_mm, -1)]
+        segs = [(s_i, e_i)] if i != 3 or end_link is None else end_link[0] * scale
+        body = m3d.Manifold.batch_boolean([capsule(p0, p1, spec.rho_mm, n) for p0, p1 in segs],
+                                          m3d.OpType.Add)
+        caps = [(p0, p1, spec.rho_mm, -1) for p0, p1 in segs]
+        if i == 3 and end_link is not None:
+            body = body + end_link[1]
+            caps += principal_capsules(end_link[1])
         if bodies is not None and bodies[i] is not None:
             # The bar always stays (it ties the carved shape to the joints); carved islands
             # not touching it would print as loose pieces, so they are dropped.
@@ -253,6 +259,15 @@ def build_assembly(joint_factors: np.ndarray, points: np.ndarray, radius: float,
         parts.append(Part(f"link_{i}", i, body, np.array([[c[0], c[1]] for c in caps]),
                           np.array([c[2] for c in caps]), np.array([c[3] for c in caps])))
     return Assembly(tuple(parts), scale, spec, tuple(zones), jf)
+
+
+def principal_capsules(body: m3d.Manifold, pieces: int = 16) -> list[tuple]:
+    """:func:`_body_capsules` along the extent of ``body``'s vertices on their principal axis."""
+    v = np.asarray(body.to_mesh().vert_properties[:, :3], float)
+    c = v.mean(0)
+    axis = np.linalg.svd(v - c, full_matrices=False)[2][0]
+    s = (v - c) @ axis
+    return _body_capsules(body, c + s.min() * axis, c + s.max() * axis, pieces)
 
 
 def _body_capsules(body: m3d.Manifold, p0: np.ndarray, p1: np.ndarray,

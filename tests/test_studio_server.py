@@ -57,8 +57,9 @@ def click(button) -> None:
     button.value = True  # buttons fire their callbacks synchronously when set from Python
 
 
-def upload(app, name: str, content: bytes) -> None:
-    handle = app.panels.load
+def upload(app, name: str, content: bytes, handle=None) -> None:
+    """What a browser upload does (default: the *Load design* button)."""
+    handle = handle or app.panels.load
     handle._impl.value = UploadedFile(name, content)
     for cb in list(handle._impl.update_cb):
         cb(GuiEvent(client=None, client_id=None, target=handle))
