@@ -31,7 +31,7 @@ def cmd_export(args: argparse.Namespace) -> int:
         result = fabrication.export_parts(
             real.joint_factors, real.points, real.radius, spec=spec, ground=not args.no_ground,
             ground_axis=args.ground_axis, space_radius=args.carve_radius,
-            resolution=args.resolution, samples=args.samples,
+            resolution=args.resolution, samples=args.samples, effector=sol.end_effector,
             progress=None if args.quiet else _print_progress)
     except ParaloopError as exc:
         print(f"error: {path}: {exc}", file=sys.stderr)

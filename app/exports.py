@@ -82,11 +82,13 @@ def fabrication_options(real: Any, fab: FabSettings, carved: bool) -> dict[str, 
 
 
 def carve_spaces(real: Any, fab: FabSettings,
-                 progress: Callable[[float, str], None] | None = None) -> tuple[Any, list]:
-    """Carve and mesh the realization's design spaces with the panel's settings."""
+                 progress: Callable[[float, str], None] | None = None,
+                 effector: Any = None) -> tuple[Any, list]:
+    """Carve and mesh the realization's design spaces with the panel's settings; an
+    end-effector (``Solution.end_effector``) is part of link 3."""
     return fabrication.carve_design_spaces(real.joint_factors, real.points, real.radius,
                                            **fabrication_options(real, fab, True),
-                                           progress=progress)
+                                           effector=effector, progress=progress)
 
 
 def export_zip(solution: pipeline.Solution, fab: FabSettings,
@@ -100,7 +102,8 @@ def export_zip(solution: pipeline.Solution, fab: FabSettings,
     if real is not None:
         opts = fabrication_options(real, fab, fab.carved_parts)
         parts = fabrication.export_design_parts(real.joint_factors, real.points, real.radius,
-                                                ground=fab.ground, progress=progress, **opts)
+                                                ground=fab.ground, progress=progress,
+                                                effector=solution.end_effector, **opts)
         files += parts
         report = json.loads(dict(parts)["report.json"])
     buf = io.BytesIO()

@@ -165,7 +165,8 @@ class FabricationPanel:
         if real is None:
             raise FabricationError("the design has no realization (switch Realize on)",
                                    "bad-parameters")
-        cv, bodies = carve_spaces(real, fab, lambda f, m: self._progress(f, m, "Carving"))
+        cv, bodies = carve_spaces(real, fab, lambda f, m: self._progress(f, m, "Carving"),
+                                  effector=sol.end_effector)
         studio, st = self.studio, self.studio.state
         with self.server.atomic():
             studio.scene.set_spaces(real.joint_factors, bodies)

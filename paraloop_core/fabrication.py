@@ -30,16 +30,21 @@ import json
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass
+from typing import TYPE_CHECKING
 
 import manifold3d as m3d
 import numpy as np
 import trimesh
 
-from . import carve, dq, grounding, loops, meshing, parts, poly
+from . import carve, dq, endlink, grounding, loops, meshing, parts, poly
 from .clearance import segment_distance
 from .errors import FabricationError
 from .motion_bound import displacement_bounds, motion_bound
 from .parts import Assembly, Part, PartSpec, design_scale, resolve_spec, zone_hulls, zone_solid
+
+if TYPE_CHECKING:
+    from .endeffector import EndEffector
+    from .realize_ee import EndEffectorRealization
 
 Progress = Callable[[float, str], None]
 _COLORS = np.array([[150, 150, 150], [220, 60, 60], [60, 160, 70], [240, 140, 30],
@@ -263,21 +268,27 @@ def export_parts(joint_factors: np.ndarray, points: np.ndarray, radius: float, *
                  ground_z: float | None = None,
                  space_radius: float | Sequence[float] | None = None,
                  resolution: int = 128, order: Sequence[tuple[int, int]] = carve.DEFAULT_ORDER,
-                 samples: int = 720, progress: Progress | None = None) -> ExportResult:
+                 samples: int = 720,
+                 effector: EndEffector | EndEffectorRealization | None = None,
+                 progress: Progress | None = None) -> ExportResult:
     """Parts of a realized loop (``joint_factors`` ``(6, 8)``, ``points`` ``(12, 3)``, bar
     ``radius``, design units) at ``spec.size_mm``, with a grounding column on link 0
     (``ground``; ``ground_z`` in design units) and, if ``space_radius`` is given (one value:
     base link twice; or six, e.g. ``Realization.design_space_radii``), carved design spaces as
-    link bodies (:func:`carve_design_spaces`); exported and verified."""
+    link bodies (:func:`carve_design_spaces`); exported and verified. ``effector``: the
+    end-effector (``Solution.end_effector`` or its ``EndEffector``; None: none): link 3 is then
+    the bars ``S_3 L``, ``R E_3`` and P's solid (:mod:`endlink`), not the bar ``S_3 E_3``."""
     pts = np.asarray(points, float)
     spec = spec or PartSpec()
     scale = design_scale(pts, spec.size_mm)
     rs = resolve_spec(spec, float(radius), scale)
     report: dict = {}
+    el = None if effector is None else endlink.end_link(effector, pts)
+    solid = None if el is None else endlink.solid_manifold(el, scale)
     bodies = None
     if space_radius is not None:
         cv, bodies = carve_design_spaces(joint_factors, pts, radius, space_radius, spec=spec,
-                                         resolution=resolution, order=order,
+                                         resolution=resolution, order=order, effector=effector,
                                          progress=_stage(progress, 0.0, 0.4))
         report["carving"] = {**cv.report, "meshed": [b is not None for b in bodies]}
     extras = None
@@ -286,10 +297,13 @@ def export_parts(joint_factors: np.ndarray, points: np.ndarray, radius: float, *
             raise FabricationError("print-in-place parts ground through A_0 only (A_5 carries "
                                    "link 5's pin head)", "bad-parameters")
         gz = _zones_extent(rs)
+        end_caps = None if el is None else \
+            [(p0, p1, rs.rho_mm / scale) for p0, p1 in el.bars] + \
+            [(c[0] / scale, c[1] / scale, c[2] / scale) for c in parts.principal_capsules(solid)]
         g = grounding.ground_column(
             joint_factors, pts, bar_radius=rs.rho_mm / scale, hub_radius=gz[0] / scale,
             hub_extent=gz[1] / scale, axis=0 if rs.print_in_place else ground_axis,
-            ground_z=ground_z)
+            ground_z=ground_z, end_link=end_caps)
         top, bottom = g.top * scale, g.bottom * scale
         # start 1 mm (at most half the boss) inside the base link's boss: no touching faces
         pin = float(np.linalg.norm(pts[2] - pts[1] if g.axis == 0 else pts[0] - pts[11]))
@@ -307,7 +321,11 @@ def export_parts(joint_factors: np.ndarray, points: np.ndarray, radius: float, *
                                "sampled_clearance_mm": g.sampled_clearance * scale}
     if progress is not None:
         progress(0.45, "building parts")
-    asm = parts.build_assembly(joint_factors, pts, radius, spec, bodies, extras)
+    asm = parts.build_assembly(joint_factors, pts, radius, spec, bodies, extras,
+                               None if el is None else (el.bars, solid))
+    if el is not None:  # P is cut only where it would enter a joint's hardware zone
+        report["end_effector"] = {"method": el.method, "volume_mm3": solid.volume(),
+                                  "kept_mm3": (asm.parts[3].manifold ^ solid).volume()}
     return export_assembly(asm, samples=samples, extra_report=report,
                            progress=_stage(progress, 0.5, 1.0))
 
@@ -316,19 +334,30 @@ def carve_design_spaces(joint_factors: np.ndarray, points: np.ndarray, radius: f
                         space_radius: float | Sequence[float], *, spec: PartSpec | None = None,
                         resolution: int = 128,
                         order: Sequence[tuple[int, int]] = carve.DEFAULT_ORDER,
+                        effector: EndEffector | EndEffectorRealization | None = None,
                         progress: Progress | None = None,
                         ) -> tuple[carve.Carving, list[tuple[np.ndarray, np.ndarray] | None]]:
     """Carve capsule design spaces of ``space_radius`` (design units; see
     :func:`carve.default_spaces`) in ``order`` with joint zones sized for the hardware of
-    ``spec``, and mesh them (None where a space is too thin to mesh). Meshes in home frames."""
+    ``spec``, and mesh them (None where a space is too thin to mesh). Meshes in home frames.
+    With an ``effector`` (as in :func:`export_parts`) link 3's space covers its bars ``S_3 L``,
+    ``R E_3`` and P (:func:`endlink.link_space`), and P, fixed in link 3, is removed with its
+    sweep from every other space before the pairwise differences."""
     pts = np.asarray(points, float)
     spec = spec or PartSpec()
     scale = design_scale(pts, spec.size_mm)
     rs = resolve_spec(spec, float(radius), scale)
     spaces = carve.default_spaces(pts, space_radius, resolution=resolution)
+    bars, fixed = None, []
+    if effector is not None:
+        el = endlink.end_link(effector, pts)
+        r3 = float(np.ravel(space_radius)[3 if np.ndim(space_radius) else 0])
+        spaces[3] = endlink.link_space(el, r3, scale, resolution)
+        bars = [el.bars if i == 3 else None for i in range(6)]
+        fixed = [(3, endlink.solid_space(el, spaces[3].pitch, scale))]
     cv = carve.carve(joint_factors, pts, spaces, keep_radius=float(radius),
-                     joint_radius=rs.boss_radius_mm / scale * 1.1, order=order,
-                     progress=_stage(progress, 0.0, 0.9))
+                     joint_radius=rs.boss_radius_mm / scale * 1.1, order=order, bars=bars,
+                     fixed=fixed, progress=_stage(progress, 0.0, 0.9))
     bodies = [_carved_body(sp) for sp in cv.spaces]
     if progress is not None:
         progress(1.0, "carved spaces meshed")

@@ -13,6 +13,7 @@ All lengths in design units, base frame, home configuration.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -42,13 +43,18 @@ class Grounding:
 
 
 def link_capsules(points: np.ndarray, bar_radius: float, hub_radius: float,
-                  hub_extent: float) -> list[list[tuple[np.ndarray, np.ndarray, float, int]]]:
+                  hub_extent: float, end_link: Sequence[tuple] | None = None,
+                  ) -> list[list[tuple[np.ndarray, np.ndarray, float, int]]]:
     """Skeleton capsules per link (home frame): the bar and the two hubs along the pins, each
     hub from the pin's midpoint to ``hub_extent`` beyond the joint point; tagged with the joint
-    (-1 for the bar). ``points`` ``(12, 3)``."""
+    (-1 for the bar). ``points`` ``(12, 3)``; ``end_link``: capsules ``(p0, p1, radius)``
+    replacing link 3's bar (bars ``S_3 L``, ``R E_3`` and the end-effector P)."""
     out: list[list[tuple[np.ndarray, np.ndarray, float, int]]] = [[] for _ in range(6)]
     for i in range(6):
-        out[i].append((points[2 * i], points[2 * i + 1], bar_radius, -1))
+        if i == 3 and end_link is not None:
+            out[i] += [(p0, p1, r, -1) for p0, p1, r in end_link]
+        else:
+            out[i].append((points[2 * i], points[2 * i + 1], bar_radius, -1))
         e, s = points[2 * i + 1], points[(2 * i + 2) % 12]
         d = s - e
         w = d / n if (n := np.linalg.norm(d)) > 0 else np.zeros(3)
@@ -82,8 +88,10 @@ def _column_gaps(jf: np.ndarray, caps: list, top: np.ndarray, bottom: np.ndarray
 def ground_column(joint_factors: np.ndarray, points: np.ndarray, *, bar_radius: float,
                   hub_radius: float, hub_extent: float, column_radius: float | None = None,
                   axis: int | None = None, ground_z: float | None = None,
-                  margin: float | None = None, samples: int = 720) -> Grounding:
-    """Grounding column through A_0 or A_5 (``axis``; default: the first that works).
+                  margin: float | None = None, samples: int = 720,
+                  end_link: Sequence[tuple] | None = None) -> Grounding:
+    """Grounding column through A_0 or A_5 (``axis``; default: the first that works);
+    ``end_link`` as in :func:`link_capsules` (so the ground lies below the end-effector too).
 
     Raises :class:`FabricationError` (``bad-parameters``) for bad sizes and (``grounding``)
     when neither axis points down to the ground or every column collides with a moving link.
@@ -97,14 +105,15 @@ def ground_column(joint_factors: np.ndarray, points: np.ndarray, *, bar_radius: 
                                "axis 0 or 5", "bad-parameters")
     foot_h = r
     margin = foot_h + 2.0 * r if margin is None else margin
-    caps = link_capsules(pts, bar_radius, hub_radius, hub_extent)
+    caps = link_capsules(pts, bar_radius, hub_radius, hub_extent, end_link)
     u = np.arange(samples) / samples
     if ground_z is None:
         poses = dq.to_matrix(loops.link_poses(jf, poly.param_to_t(u)))
         lowest = np.inf
         for j in range(6):
             ends = np.array([p for c in caps[j] for p in c[:2]])
-            z = np.einsum("tj,nj->tn", poses[:, j, 2, :3], ends) + poses[:, j, None, 2, 3]
+            rad = np.repeat([c[2] for c in caps[j]], 2)  # lowest point of each capsule
+            z = np.einsum("tj,nj->tn", poses[:, j, 2, :3], ends) + poses[:, j, None, 2, 3] - rad
             # Sampled lowest point, made safe by the motion between samples.
             step = 0.0
             if j:
@@ -112,7 +121,7 @@ def ground_column(joint_factors: np.ndarray, points: np.ndarray, *, bar_radius: 
                 reach = float(np.max(np.linalg.norm(ends - center, axis=1)))
                 step = float(displacement_bounds(motion_bound(jf, 0, j, center), reach, u).max())
             lowest = min(lowest, float(z.min()) - step)
-        ground_z = lowest - max(bar_radius, hub_radius) - margin
+        ground_z = lowest - margin
     tried = []
     for ax in ([axis] if axis is not None else [0, 5]):
         top = pts[1] if ax == 0 else pts[0]

@@ -154,9 +154,14 @@ def cylinder(p0: np.ndarray, p1: np.ndarray, radius: float, segments: int) -> m3
 
 
 def capsule(p0: np.ndarray, p1: np.ndarray, radius: float, segments: int) -> m3d.Manifold:
-    """Convex hull of two spheres of ``radius`` about ``p0``, ``p1``."""
+    """Convex hull of two spheres of ``radius`` about ``p0``, ``p1``, tessellated in the bar's
+    frame: world-aligned vertex rings would lie in faces through an end point (the end link's
+    bars end at vertices of P) and give degenerate, non-watertight unions."""
     s = m3d.Manifold.sphere(radius, segments)
-    return m3d.Manifold.batch_hull([s.translate(tuple(p0)), s.translate(tuple(p1))])
+    h = float(np.linalg.norm(np.asarray(p1) - p0))
+    if h == 0.0:
+        return s.translate(tuple(p0))
+    return m3d.Manifold.batch_hull([s, s.translate((0.0, 0.0, h))]).transform(_frame_to(p0, p1))
 
 
 def _head_length(spec: PartSpec) -> float:

@@ -63,3 +63,19 @@ def test_evolution_controls_edit_the_design_and_report_the_fit(tmp_path):
     finally:
         app.close()
         server.stop()
+
+
+def test_export_zip_builds_link_3_with_the_end_effector(panel_studio):
+    import io
+    import json
+    import zipfile
+
+    from app.exports import export_zip
+    from app.state import FabSettings
+
+    name, data, report = export_zip(panel_studio.solution, FabSettings(size_mm=500.0))
+    assert report["verification"]["ok"] and report["end_effector"]["method"] == "closed"
+    with zipfile.ZipFile(io.BytesIO(data)) as zf:
+        names = zf.namelist()
+        assert {"link_3.stl", "paraloop.3mf", "assembly.glb", "report.json"} <= set(names)
+        assert json.loads(zf.read("report.json"))["verification"]["ok"]
