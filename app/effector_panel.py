@@ -60,7 +60,7 @@ def parse_vertex(text: str, name: str) -> int | None:
 
 
 def certificate_summary(real: Any) -> str:
-    """Markdown summary of a :class:`realize_ee.EndEffectorRealization`'s certificate."""
+    """Markdown summary of a :class:`ee_certificate.EndEffectorRealization`'s certificate."""
     e = real.effector
     gap = real.ee_distance - real.ee_required
     on_p = np.array([label.startswith("P-") for label in real.ee_labels])

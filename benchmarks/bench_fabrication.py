@@ -12,7 +12,7 @@ import time
 
 import numpy as np
 
-from paraloop_core import carve, design, fabrication, meshing, parts, pipeline
+from paraloop_core import carve, design, fabrication, meshing, parts, pipeline, voxelspace
 
 COLORS = np.array([[150, 150, 150], [220, 60, 60], [60, 160, 70], [240, 140, 30],
                    [60, 110, 220], [170, 80, 200]], float)
@@ -52,7 +52,7 @@ def main(path: str = "assets/designs/sun-disc.json", png: str | None = None) -> 
     space_r = float(np.median(real.design_space_radii))
     print(f"design {path}: bar radius {rho:.4g}, design-space radius {space_r:.4g}")
 
-    spaces = carve.default_spaces(pts, space_r, resolution=128)
+    spaces = voxelspace.default_spaces(pts, space_r, resolution=128)
     shapes = [sp.occupancy.shape for sp in spaces]
     print("grids:", shapes, f"({sum(int(np.prod(s)) for s in shapes) / 1e6:.2f} M voxels)")
     last = [0.0]

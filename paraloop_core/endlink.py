@@ -28,13 +28,13 @@ import manifold3d as m3d
 import numpy as np
 import trimesh
 
-from .carve import VoxelSpace, point_segment_distance
 from .endeffector import EndEffector
 from .facecollide import inside_closed, point_triangle_distance
 from .parts import MIN_WALL_MM
+from .voxelspace import VoxelSpace, point_segment_distance
 
 if TYPE_CHECKING:
-    from .realize_ee import EndEffectorRealization
+    from .ee_certificate import EndEffectorRealization
 
 SHEET_MM = MIN_WALL_MM  # total printed thickness of an open (sheet) end-effector
 _CHUNK = 1024  # points per distance batch (memory only)
@@ -60,7 +60,7 @@ def _mesh(vertices: np.ndarray, faces: np.ndarray) -> m3d.Manifold:
 
 def end_link(effector: EndEffector | EndEffectorRealization, points: np.ndarray) -> EndLink:
     """The end link of a realization with an end-effector: ``effector`` is an
-    :class:`endeffector.EndEffector` or a ``realize_ee.EndEffectorRealization`` (its
+    :class:`endeffector.EndEffector` or a ``ee_certificate.EndEffectorRealization`` (its
     ``effector``), ``points`` ``(12, 3)`` the offset polyline (``S_3 = points[6]``,
     ``E_3 = points[7]``)."""
     ee = getattr(effector, "effector", effector)

@@ -36,15 +36,15 @@ import manifold3d as m3d
 import numpy as np
 import trimesh
 
-from . import carve, dq, endlink, grounding, loops, meshing, parts, poly
+from . import carve, dq, endlink, grounding, loops, meshing, parts, poly, voxelspace
 from .clearance import segment_distance
 from .errors import FabricationError
 from .motion_bound import displacement_bounds, motion_bound
 from .parts import Assembly, Part, PartSpec, design_scale, resolve_spec, zone_hulls, zone_solid
 
 if TYPE_CHECKING:
+    from .ee_certificate import EndEffectorRealization
     from .endeffector import EndEffector
-    from .realize_ee import EndEffectorRealization
 
 Progress = Callable[[float, str], None]
 _COLORS = np.array([[150, 150, 150], [220, 60, 60], [60, 160, 70], [240, 140, 30],
@@ -338,7 +338,7 @@ def carve_design_spaces(joint_factors: np.ndarray, points: np.ndarray, radius: f
                         progress: Progress | None = None,
                         ) -> tuple[carve.Carving, list[tuple[np.ndarray, np.ndarray] | None]]:
     """Carve capsule design spaces of ``space_radius`` (design units; see
-    :func:`carve.default_spaces`) in ``order`` with joint zones sized for the hardware of
+    :func:`voxelspace.default_spaces`) in ``order`` with joint zones sized for the hardware of
     ``spec``, and mesh them (None where a space is too thin to mesh). Meshes in home frames.
     With an ``effector`` (as in :func:`export_parts`) link 3's space covers its bars ``S_3 L``,
     ``R E_3`` and P (:func:`endlink.link_space`), and P, fixed in link 3, is removed with its
@@ -347,7 +347,7 @@ def carve_design_spaces(joint_factors: np.ndarray, points: np.ndarray, radius: f
     spec = spec or PartSpec()
     scale = design_scale(pts, spec.size_mm)
     rs = resolve_spec(spec, float(radius), scale)
-    spaces = carve.default_spaces(pts, space_radius, resolution=resolution)
+    spaces = voxelspace.default_spaces(pts, space_radius, resolution=resolution)
     bars, fixed = None, []
     if effector is not None:
         el = endlink.end_link(effector, pts)
@@ -364,7 +364,7 @@ def carve_design_spaces(joint_factors: np.ndarray, points: np.ndarray, radius: f
     return cv, bodies
 
 
-def _carved_body(space: carve.VoxelSpace) -> tuple[np.ndarray, np.ndarray] | None:
+def _carved_body(space: voxelspace.VoxelSpace) -> tuple[np.ndarray, np.ndarray] | None:
     """Mesh of a carved space (coarse first, then fine); None where it is too thin to mesh
     (the part then keeps just its bar)."""
     for stride in (2, 1):

@@ -25,8 +25,8 @@ import manifold3d as m3d
 import numpy as np
 from scipy import ndimage, sparse
 
-from .carve import VoxelSpace
 from .errors import FabricationError
+from .voxelspace import VoxelSpace
 
 #: Corner k of a cube has offset bits (x, y, z) = (k >> 2, k >> 1, k) & 1.
 _CORNERS = np.array([[(k >> 2) & 1, (k >> 1) & 1, k & 1] for k in range(8)])

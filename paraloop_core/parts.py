@@ -27,8 +27,8 @@ import manifold3d as m3d
 import numpy as np
 
 from . import loops
-from .carve import point_segment_distance
 from .errors import FabricationError
+from .voxelspace import point_segment_distance
 
 MIN_WALL_MM = 0.8  # thinnest boss wall around a bore we accept (typical FDM: 2 perimeters)
 

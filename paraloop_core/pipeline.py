@@ -35,7 +35,7 @@ class Solution:
     singularity_t: np.ndarray  # (9,) where the min occurs (inf allowed)
     realization: Any = None  # realize.Realization or None
     fit: Any = None  # evolution.FitResult for method 'fit', else None
-    end_effector: Any = None  # realize_ee.EndEffectorRealization when the design has one
+    end_effector: Any = None  # ee_certificate.EndEffectorRealization when the design has one
 
     @property
     def loop(self) -> loops.Loop:
@@ -182,9 +182,9 @@ def result_to_dict(sol: Solution) -> dict[str, Any]:
         out["realization"] = {"loop": sol.design.loop,
                               **realize_mod.realization_to_dict(sol.realization)}
     if sol.end_effector is not None:
-        from . import realize_ee
+        from . import ee_certificate
 
-        out["end_effector"] = realize_ee.ee_to_dict(sol.end_effector)
+        out["end_effector"] = ee_certificate.ee_to_dict(sol.end_effector)
     return out
 
 

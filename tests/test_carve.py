@@ -11,7 +11,7 @@ from scipy import ndimage
 from scipy.spatial import cKDTree
 from test_parts import example_loop
 
-from paraloop_core import carve, dq, loops, meshing, motion_bound, poly
+from paraloop_core import carve, dq, loops, meshing, motion_bound, poly, sweep, voxelspace
 from paraloop_core.errors import FabricationError
 
 RES = 40  # voxels along a design space: coarse but quick
@@ -23,7 +23,8 @@ def rel_mats(jf: np.ndarray, a: int, b: int, u: np.ndarray) -> np.ndarray:
     return dq.to_matrix(dq.mul(dq.inv(poses[:, a]), poses[:, b]))
 
 
-def colliding(target: carve.VoxelSpace, src: carve.VoxelSpace, mats: np.ndarray) -> int:
+def colliding(target: voxelspace.VoxelSpace, src: voxelspace.VoxelSpace,
+              mats: np.ndarray) -> int:
     """Number of (time, source voxel) hits: a source ball meets a target ball. Exact, with an
     EDT prefilter: dist(p, A) >= EDT(nearest grid point) - h_a."""
     reach = target.half_diagonal + src.half_diagonal
@@ -49,7 +50,7 @@ def colliding(target: carve.VoxelSpace, src: carve.VoxelSpace, mats: np.ndarray)
 @functools.lru_cache(maxsize=1)
 def carved() -> carve.Carving:
     jf, pts, radius = example_loop()
-    spaces = carve.default_spaces(pts, 2.5 * radius, resolution=RES)
+    spaces = voxelspace.default_spaces(pts, 2.5 * radius, resolution=RES)
     return carve.carve(jf, pts, spaces, keep_radius=radius)
 
 
@@ -101,7 +102,8 @@ def test_carved_spaces_are_collision_free_at_dense_times():
     jf, _, _ = example_loop()
     cv = carved()
     jf0, pts, radius = example_loop()
-    before = [sp.occupancy.sum() for sp in carve.default_spaces(pts, 2.5 * radius, resolution=RES)]
+    spaces = voxelspace.default_spaces(pts, 2.5 * radius, resolution=RES)
+    before = [sp.occupancy.sum() for sp in spaces]
     after = [sp.occupancy.sum() for sp in cv.spaces]
     assert all(0 < n1 < n0 for n0, n1 in zip(before, after, strict=True))  # really carved
     assert cv.report["max_motion_margin"] > 0
@@ -117,18 +119,18 @@ def test_naive_sampled_sweep_misses_what_the_dilated_sweep_catches():
     leaves voxels that collide at times between the samples; the motion-bound dilation not."""
     jf, pts, radius = example_loop()
     a, b = 2, 5
-    spaces = carve.default_spaces(pts, 2.5 * radius, resolution=RES)
+    spaces = voxelspace.default_spaces(pts, 2.5 * radius, resolution=RES)
     target, src = spaces[a], spaces[b]
     keep = np.zeros_like(target.occupancy)
     grid_pts = np.argwhere(src.occupancy) * src.pitch
     u12 = np.arange(12) / 12
-    mats = np.linalg.inv(target.frame) @ carve._relative_mats(jf, a, b, u12) @ src.frame
-    naive = carve._splat_remove(target, keep, [(grid_pts, mats)],
-                                src.half_diagonal + 2 * target.half_diagonal)
+    mats = np.linalg.inv(target.frame) @ sweep.relative_mats(jf, a, b, u12) @ src.frame
+    naive = sweep.splat_remove(target, keep, [(grid_pts, mats)],
+                               src.half_diagonal + 2 * target.half_diagonal)
     delta = target.pitch
-    jobs, n = carve._sweep_jobs(jf, a, b, target, grid_pts, grid_pts, src.frame, delta)
-    safe = carve._splat_remove(target, keep, jobs, delta + src.half_diagonal
-                               + 2 * target.half_diagonal)
+    jobs, n = sweep.sweep_jobs(jf, a, b, target, grid_pts, grid_pts, src.frame, delta)
+    safe = sweep.splat_remove(target, keep, jobs, delta + src.half_diagonal
+                              + 2 * target.half_diagonal)
     dense = rel_mats(jf, a, b, (np.arange(2000) + 0.5) / 2000)
     assert n > 12
     assert colliding(target.with_occupancy(naive), src, dense) > 0
@@ -137,7 +139,7 @@ def test_naive_sampled_sweep_misses_what_the_dilated_sweep_catches():
 
 def test_meshes_are_watertight_and_inside_the_voxel_region():
     jf, pts, radius = example_loop()
-    for sp in carve.default_spaces(pts, 3 * radius, resolution=RES)[1:3]:
+    for sp in voxelspace.default_spaces(pts, 3 * radius, resolution=RES)[1:3]:
         occ = sp.occupancy.copy()
         occ[: occ.shape[0] // 3, : occ.shape[1] // 2] = False  # a notch, not just a capsule
         sp = sp.with_occupancy(occ)
@@ -158,22 +160,22 @@ def test_marching_tetrahedra_sphere():
 
 def test_user_mesh_space_and_per_link_radii():
     box = trimesh.creation.box(extents=[1.0, 0.5, 0.25])
-    sp = carve.mesh_space(box.vertices, box.faces, 0.05)
+    sp = voxelspace.mesh_space(box.vertices, box.faces, 0.05)
     c = sp.centers()
     assert len(c) > 100 and np.all(np.abs(c) <= [0.5, 0.25, 0.125] + np.array(0.05))
     assert sp.occupancy.sum() * 0.05**3 == pytest.approx(box.volume, rel=0.35)
     _, pts, radius = example_loop()
-    spaces = carve.default_spaces(pts, [radius * (1 + i) for i in range(6)], resolution=16)
+    spaces = voxelspace.default_spaces(pts, [radius * (1 + i) for i in range(6)], resolution=16)
     assert spaces[5].occupancy.shape[1] > spaces[0].occupancy.shape[1]
     with pytest.raises(FabricationError):
-        carve.default_spaces(pts, [radius] * 5)
+        voxelspace.default_spaces(pts, [radius] * 5)
 
 
 def test_bad_inputs_refused():
     jf, pts, radius = example_loop()
     with pytest.raises(FabricationError):
-        carve.capsule_space(pts[0], pts[1], 0.0)
-    spaces = carve.default_spaces(pts, 2 * radius, resolution=16)
+        voxelspace.capsule_space(pts[0], pts[1], 0.0)
+    spaces = voxelspace.default_spaces(pts, 2 * radius, resolution=16)
     empty = spaces[3].with_occupancy(np.zeros_like(spaces[3].occupancy))
     with pytest.raises(FabricationError) as err:
         carve.carve(jf, pts, spaces[:3] + [empty] + spaces[4:], keep_radius=radius)
@@ -188,7 +190,7 @@ def test_bad_inputs_refused():
 
 def test_an_emptied_space_stays_empty_without_error():
     _, pts, radius = example_loop()
-    sp = carve.capsule_space(pts[0], pts[1], radius, resolution=16)
+    sp = voxelspace.capsule_space(pts[0], pts[1], radius, resolution=16)
     empty = sp.with_occupancy(np.zeros_like(sp.occupancy))
     jobs = [(sp.centers(), np.eye(4)[None])]
-    assert not carve._splat_remove(empty, empty.occupancy, jobs, radius).any()
+    assert not sweep.splat_remove(empty, empty.occupancy, jobs, radius).any()

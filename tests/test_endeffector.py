@@ -9,6 +9,7 @@ import pytest
 import trimesh
 
 from paraloop_core import design, dq, loops, pipeline, poly
+from paraloop_core import ee_certificate as eec
 from paraloop_core import endeffector as eem
 from paraloop_core import realize_ee as ree
 from paraloop_core.clearance import motion_data, segment_distance
@@ -139,13 +140,13 @@ def test_initial_polyline_minimizes_the_routed_length_squares(sun):
 # ---------------------------------------------------------------- realization
 
 
-def _dense_check(r: ree.EndEffectorRealization, samples: int = 1500) -> None:
+def _dense_check(r: eec.EndEffectorRealization, samples: int = 1500) -> None:
     """Every end-effector row recomputed in the base frame with loops.link_poses."""
     jf, ee = r.realization.joint_factors, r.effector
     t = poly.param_to_t(np.linspace(0.0, 1.0, samples, endpoint=False))
     poses = loops.link_poses(jf, t)  # (T, 6, 8)
     faces = dq.transform_points(poses[:, 3, None], ee.vertices[None])[:, ee.faces]  # (T,F,3,3)
-    fixed, moving = ree.ee_segments(r)
+    fixed, moving = eec.ee_segments(r)
     for n, (f, m, (_, lb)) in enumerate(zip(fixed, moving, r.ee_links, strict=True)):
         mm = dq.transform_points(poses[:, lb, None], m[None])  # (T, 2, 3)
         if np.isnan(f).any():
@@ -172,11 +173,11 @@ def test_fig9_with_and_without_end_effector(sun):
     assert np.all(real.design_space_radii >= real.radius - 1e-12)
     assert not np.allclose(real.points, plain.points)  # the realized polylines differ
     _dense_check(r)
-    out = ree.ee_to_dict(r)
+    out = eec.ee_to_dict(r)
     assert out["L"] == ee.L and len(out["pairs"]) == len(r.ee_labels)
     assert out["min_clearance"] >= 0
-    assert ree.effector_at(r, np.array([np.inf, 0.3])).shape == (2, len(ee.vertices), 3)
-    assert np.allclose(ree.effector_at(r, np.array([np.inf]))[0], ee.vertices)
+    assert eec.effector_at(r, np.array([np.inf, 0.3])).shape == (2, len(ee.vertices), 3)
+    assert np.allclose(eec.effector_at(r, np.array([np.inf]))[0], ee.vertices)
 
 
 def test_random_loops_certified():
