@@ -14,7 +14,6 @@ from pathlib import Path
 from app import export_cmd, studio, validate_evolution, validate_realization
 from paraloop_core import design as design_mod
 from paraloop_core import pipeline
-from paraloop_core.errors import ParaloopError
 
 
 def _write_json_atomic(path: Path, data: dict) -> None:
@@ -41,7 +40,7 @@ def cmd_solve(args: argparse.Namespace) -> int:
         try:
             design = design_mod.load_design(path)
             result = pipeline.result_to_dict(pipeline.solve(design, realize=not args.no_realize))
-        except ParaloopError as exc:
+        except ValueError as exc:  # ParaloopError and any other bad-input ValueError
             print(f"error: {path}: {exc}", file=sys.stderr)
             failures += 1
             continue
@@ -81,7 +80,7 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         return int(args.func(args) or 0)
-    except ParaloopError as exc:
+    except ValueError as exc:  # bad input reaching the core: one line, never a traceback
         print(f"error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

@@ -33,7 +33,7 @@ def cmd_export(args: argparse.Namespace) -> int:
             ground_axis=args.ground_axis, space_radius=args.carve_radius,
             resolution=args.resolution, samples=args.samples, effector=sol.end_effector,
             progress=None if args.quiet else _print_progress)
-    except ParaloopError as exc:
+    except ValueError as exc:  # ParaloopError and any other bad-input ValueError
         print(f"error: {path}: {exc}", file=sys.stderr)
         return 1
     out = Path(args.out)

@@ -14,6 +14,7 @@ import viser
 
 from paraloop_core import factor, loops, poly
 from paraloop_core.design import CRITERIA, METHODS, Design
+from paraloop_core.evolution import evolution_settings
 
 from .effector_panel import EffectorPanel
 from .evolution_panel import EvolutionPanel
@@ -188,6 +189,13 @@ class Panels:
         self.studio.request(FULL)
 
     def _evolution(self, key: str, value: Any) -> None:
+        options = {**self.studio.state.design.evolution, key: value}
+        try:  # refuse settings the design file could not hold (they would break the autosave)
+            evolution_settings(options)
+        except (TypeError, ValueError) as exc:
+            self.studio.notify("Evolution", str(exc), error=True)
+            self.studio.request(FRAME, sync=True)
+            return
         self.studio.state.edit(lambda d: dataclasses.replace(
             d, evolution={**d.evolution, key: value}), key)
         self.studio.request(FULL)
@@ -215,6 +223,9 @@ class Panels:
     def _remove_pose(self) -> None:
         if self.studio.state.remove_pose(int(self.pose_pick.value[1:])):
             self.studio.request(FULL, sync=True)
+        else:
+            self.studio.notify("Remove pose", "a design needs at least four target poses",
+                               error=True)
 
     def _set_lock(self, i: int, handle: viser.GuiCheckboxHandle) -> None:
         if self.studio.state.set_locked(i, handle.value):

@@ -169,10 +169,11 @@ class StudioState:
             self.commit(dataclasses.replace(self.design, poses=self.design.poses + (pose,)))
 
     def remove_pose(self, i: int) -> bool:
-        """Remove target ``i``; lock indices are renumbered. False if out of range."""
+        """Remove target ``i``; lock indices are renumbered. False if out of range or only four
+        targets are left (every design needs at least four)."""
         with self._lock:
             d = self.design
-            if not 0 <= i < len(d.poses) or len(d.poses) <= 1:
+            if not 0 <= i < len(d.poses) or len(d.poses) <= 4:
                 return False
             locked = tuple(j - (j > i) for j in d.locked if j != i)
             self.commit(dataclasses.replace(d, poses=d.poses[:i] + d.poses[i + 1 :],

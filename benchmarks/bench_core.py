@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from paraloop_core import design, factor, pipeline, poly
+from paraloop_core import design, factor, pipeline, poly, table1
 
 
 def _timeit(fn, repeat: int) -> np.ndarray:
@@ -23,12 +23,7 @@ def _timeit(fn, repeat: int) -> np.ndarray:
 
 
 def random_cubics(n: int, seed: int = 0) -> np.ndarray:
-    rng = np.random.default_rng(seed)
-    h = rng.normal(size=(n, 3, 8))
-    h[..., 4] = 0.0
-    p = h[..., 1:4]
-    h[..., 5:8] -= np.sum(p * h[..., 5:8], -1, keepdims=True) / np.sum(p * p, -1, keepdims=True) * p
-    return poly.from_factors(h)
+    return poly.from_factors(table1.random_rotation_factors(np.random.default_rng(seed), (n, 3)))
 
 
 def main() -> None:

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from .errors import DesignFileError
+from .tolerance import TOL
 
 FORMAT = "paraloop-design"
 VERSION = 1
@@ -194,7 +195,7 @@ def _inertia(v: Any) -> InertiaSettings:
         if not isinstance(rows, list) or len(rows) != 3:
             raise DesignFileError("inertia.axes", "must be 3 rows of 3 numbers")
         axes = np.array([_vec(r, 3, f"inertia.axes[{i}]") for i, r in enumerate(rows)])
-        if not np.allclose(axes @ axes.T, np.eye(3), atol=1e-6):
+        if not np.allclose(axes @ axes.T, np.eye(3), atol=TOL.orthonormal):
             raise DesignFileError("inertia.axes", "rows must be orthonormal")
     weight = _num(d.get("weight", 1.0), "inertia.weight", positive=True)
     return InertiaSettings(center, semi, axes, weight)
@@ -249,11 +250,6 @@ def design_from_dict(data: Any) -> Design:
         raise DesignFileError("poses", "must be a list of at least 4 poses")
     poses = tuple(_pose(p, f"poses[{i}]") for i, p in enumerate(poses_raw))
     motion = _motion(d.get("motion", {}))
-    if motion.method == "four-pose" and len(poses) != 4:
-        raise DesignFileError("poses", f"method 'four-pose' needs exactly 4 poses, got "
-                              f"{len(poses)} (use method 'fit' for 5 or more)")
-    if motion.method == "fit" and len(poses) < 5:
-        raise DesignFileError("poses", f"method 'fit' needs at least 5 poses, got {len(poses)}")
     loop = d.get("loop", 0)
     if isinstance(loop, bool) or not isinstance(loop, int) or not 0 <= loop < 9:
         raise DesignFileError("loop", f"must be an integer 0..8, got {loop!r}")
@@ -270,7 +266,7 @@ def design_from_dict(data: Any) -> Design:
         loop=loop,
         realization=_realization(d.get("realization", {})),
         locked=tuple(sorted(set(locked))),
-        evolution=_evolution(d.get("evolution", {})),
+        evolution=_evolution(d.get("evolution", {}), len(poses)),
         end_effector=_end_effector(d.get("end_effector")),
     )
 
@@ -298,20 +294,34 @@ def _end_effector(v: Any) -> EndEffectorSettings | None:
         ends["L"], ends["R"],
         _num(d.get("clearance"), "end_effector.clearance", positive=True, allow_none=True))
 
-def _evolution(v: Any) -> dict[str, Any]:
+def _evolution(v: Any, n_poses: int) -> dict[str, Any]:
     """Evolution settings stay JSON-native in the design; validated by building them once."""
     from .evolution import evolution_settings  # local: the evolution stack is heavy
 
     d = dict(_obj(v, "evolution"))
     try:
-        evolution_settings(d)
+        settings = evolution_settings(d)
     except (TypeError, ValueError) as exc:
         raise DesignFileError("evolution", str(exc)) from exc
+    if settings.four_pose_indices is not None and max(settings.four_pose_indices) >= n_poses:
+        raise DesignFileError("evolution.four_pose_indices",
+                              f"indices must be < the number of poses ({n_poses})")
     return d
 
 
 def _pose_dict(p: Pose) -> dict[str, list[float]]:
     return {"position": p.position.tolist(), "wxyz": p.wxyz.tolist()}
+
+
+def check_pose_count(design: Design) -> None:
+    """The motion method's pose count (checked when solving, not when loading: a design being
+    edited, e.g. a pose added before switching to 'fit', must still save and load)."""
+    n, method = len(design.poses), design.motion.method
+    if method == "four-pose" and n != 4:
+        raise DesignFileError("poses", f"method 'four-pose' needs exactly 4 poses, got {n} "
+                              "(use method 'fit' for 5 or more)")
+    if method == "fit" and n < 5:
+        raise DesignFileError("poses", f"method 'fit' needs at least 5 poses, got {n}")
 
 
 def design_to_dict(design: Design) -> dict[str, Any]:

@@ -125,6 +125,8 @@ def four_pose_guess(prob: Problem, world: np.ndarray, indices: tuple[int, ...],
             u = np.linspace(lo, hi, 130)[1:-1]
             mus = poly.param_to_t(u)
             keep = ~fourpose.bad_mu_mask(fams, f, mus)
+            if not keep.any():  # every scanned mu degenerate: try the other family
+                break
             h, cost = _score_interpolants(prob, fourpose.four_pose_motion_batch(
                 fams, f, mus[keep]), ordered)
             k = int(np.argmin(cost))
@@ -204,7 +206,8 @@ def evolve_starts(
         m = len(rel)
         idx = settings.four_pose_indices or tuple(int(round(k * m / 4.0)) for k in range(4))
         if max(idx) >= m:
-            raise ValueError(f"four_pose_indices {idx} out of range for {m} targets")
+            raise FitError(f"four_pose_indices {idx} out of range for {m} targets",
+                           "bad-parameters")
         first = four_pose_guess(prob, world, idx, settings.ordered)
     n, workers = settings.starts, settings.workers
     size = max(1, min(10, n // (8 * workers)))  # small chunks: smooth progress, fair load

@@ -70,7 +70,7 @@ class EvolutionSettings:
             raise ValueError(f"init must be 'random' or 'four-pose', got {self.init!r}")
         if self.four_pose_indices is not None and (
             len(self.four_pose_indices) != 4 or self.four_pose_indices[0] != 0
-            or len(set(self.four_pose_indices)) != 4
+            or len(set(self.four_pose_indices)) != 4 or min(self.four_pose_indices) < 0
         ):
             raise ValueError("four_pose_indices must be 4 distinct target indices starting with 0")
         if not self.loop_ratio > 1.0 or self.virtual < 1:

@@ -70,7 +70,7 @@ def factorize_batch(c_monic: np.ndarray, quads: np.ndarray) -> tuple[np.ndarray,
         code = np.where(bad & (code == 0), 3, code)
         r1 = np.where(bad[..., None], dq.IDENTITY, r1)
         h = -dq.mul(dq.inv(r1), r0)
-        h = _clean_factor(h)
+        h = clean_factor(h)
         hs[i] = h
         cur, _ = poly.right_divide_linear(cur, h)
     h = np.stack(hs, axis=-2)
@@ -80,7 +80,7 @@ def factorize_batch(c_monic: np.ndarray, quads: np.ndarray) -> tuple[np.ndarray,
     return h, code
 
 
-def _clean_factor(h: np.ndarray) -> np.ndarray:
+def clean_factor(h: np.ndarray) -> np.ndarray:
     """Remove round-off from a rotation factor: dual scalar 0, moment orthogonal to direction."""
     h = h.copy()
     h[..., 4] = 0.0
@@ -99,8 +99,8 @@ def bennett_flip_batch(h1: np.ndarray, h2: np.ndarray) -> tuple[np.ndarray, np.n
     px = np.linalg.norm(x[..., :4], axis=-1)
     ok = px > TOL.singular * (1.0 + np.abs(h1).max(-1) + np.abs(h2).max(-1))
     x = np.where(ok[..., None], x, dq.IDENTITY)
-    k2 = _clean_factor(dq.mul(dq.mul(dq.inv(x), h1), x))
-    k1 = _clean_factor(h1 + h2 - k2)
+    k2 = clean_factor(dq.mul(dq.mul(dq.inv(x), h1), x))
+    k1 = clean_factor(h1 + h2 - k2)
     return k1, k2, ok
 
 

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import closest, dq, evolution, metric, poly
+from . import closest, dq, evolution, factor, metric, poly
 
 #: The paper's barycenter trajectory length and inertia-sphere radius.
 TRAJECTORY_LENGTH = 20.0
@@ -51,8 +51,7 @@ def target_motion(rng: np.random.Generator, length: float = TRAJECTORY_LENGTH) -
     """
     p = rng.normal(size=(3, 3))
     m = rng.normal(size=(3, 3))
-    m -= np.sum(p * m, 1, keepdims=True) / np.sum(p * p, 1, keepdims=True) * p
-    h = np.concatenate([rng.normal(size=(3, 1)), p, np.zeros((3, 1)), m], axis=1)
+    h = factor.clean_factor(np.concatenate([rng.normal(size=(3, 1)), p, np.zeros((3, 1)), m], 1))
     c = poly.from_factors(h)
     x = dq.translation_of(poly.evaluate_pose(c, poly.param_to_t(np.linspace(0, 1, 8193))))
     scale = length / np.sum(np.linalg.norm(np.diff(x, axis=0), axis=-1))

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import dq, factor, poly
+from .tolerance import TOL
 
 
 @dataclass(frozen=True)
@@ -35,8 +36,10 @@ class Inertia:
             raise ValueError("inertia values must be finite")
         if np.any(a < 0) or np.all(a == 0):
             raise ValueError("inertia semi-axes must be >= 0 and not all zero")
-        if not np.allclose(e @ e.T, np.eye(3), atol=1e-9):
+        if not np.allclose(e @ e.T, np.eye(3), atol=TOL.orthonormal):
             raise ValueError("inertia axes must be orthonormal rows")
+        u, _, vt = np.linalg.svd(e)
+        e = u @ vt  # the nearest orthonormal matrix: rounding in files must not skew eq. 8
         if not (np.isfinite(self.weight) and self.weight > 0):
             raise ValueError("orientation weight must be a positive number")
         object.__setattr__(self, "center", c)

@@ -12,8 +12,8 @@ from typing import Any
 
 import numpy as np
 
-from . import dq, factor, fourpose, loops, metric, poly, singularity
-from .design import Design
+from . import dq, factor, fourpose, loops, metric, singularity
+from .design import Design, check_pose_count
 
 RESULT_FORMAT = "paraloop-result"
 RESULT_VERSION = 1
@@ -80,6 +80,7 @@ def _criterion_params(design: Design) -> dict[str, Any]:
 def solve(design: Design, *, realize: bool = True) -> Solution:
     """Compute the solution of a design; raises ParaloopError subclasses (ValueError) with a
     clear message for degenerate poses, non-generic motions or failed realizations."""
+    check_pose_count(design)
     poses = design_poses(design)
     fit = None
     if design.motion.method == "fit":
@@ -186,9 +187,3 @@ def result_to_dict(sol: Solution) -> dict[str, Any]:
 
         out["end_effector"] = ee_certificate.ee_to_dict(sol.end_effector)
     return out
-
-
-def sample_motion(sol: Solution, samples: int = 256) -> tuple[np.ndarray, np.ndarray]:
-    """Parameters ``t`` (K,) over the whole cycle and unit world poses ``(K, 8)`` of C(t)."""
-    t = poly.param_to_t(np.linspace(0.0, 1.0, samples, endpoint=False))
-    return t, dq.normalize(poly.evaluate_pose(sol.motion, t))

@@ -32,11 +32,7 @@ PAPER = {
 
 def random_rotation_factors(rng: np.random.Generator, shape: tuple) -> np.ndarray:
     """Rotation factors ``(*shape, 8)``: normal coefficients, dual scalar 0, moment ⟂ direction."""
-    h = rng.normal(size=shape + (8,))
-    h[..., 4] = 0.0
-    p = h[..., 1:4]
-    h[..., 5:8] -= np.sum(p * h[..., 5:8], -1, keepdims=True) / np.sum(p * p, -1, keepdims=True) * p
-    return h
+    return factor.clean_factor(rng.normal(size=shape + (8,)))
 
 
 def random_loops(seed: int, n_motions: int) -> np.ndarray:

@@ -20,6 +20,8 @@ class Tolerance:
     translation: float = 1e-9
     #: relative residual of products / Study condition accepted as exact.
     residual: float = 1e-7
+    #: max deviation of R R^T from the identity accepted as orthonormal (then re-orthonormalized).
+    orthonormal: float = 1e-6
     #: absolute zero for normalized quantities (degenerate geometry).
     zero: float = 1e-12
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from hypothesis import strategies as st
 
-from paraloop_core import factor, poly
+from paraloop_core import factor, poly, table1
 
 E = np.eye(8)
 I_, J_, K_, EPS = E[1], E[2], E[3], E[4]
@@ -18,11 +18,7 @@ TV6_FACTORS = np.array([I_, 2 * J_ + EI, 3 * K_ + EI + EJ])
 
 def random_rotation_factors(rng: np.random.Generator, n: int = 3, batch: tuple = ()) -> np.ndarray:
     """Random rotation factors ``h`` ``(*batch, n, 8)`` (dual scalar 0, moment ⟂ direction)."""
-    h = rng.normal(size=batch + (n, 8))
-    h[..., 4] = 0.0
-    p = h[..., 1:4]
-    h[..., 5:8] -= np.sum(p * h[..., 5:8], -1, keepdims=True) / np.sum(p * p, -1, keepdims=True) * p
-    return h
+    return table1.random_rotation_factors(rng, batch + (n,))
 
 
 def random_cubic(rng: np.random.Generator, batch: tuple = ()) -> np.ndarray:

@@ -88,10 +88,18 @@ def test_criterion_parameters_are_required_and_used():
     assert info.value.field == "motion.extra_poses"
 
 
-def test_pose_count_must_match_method():
+def test_pose_count_must_match_method_when_solving():
+    from paraloop_core import pipeline
+
     data = _mutated(["poses"], TV8["poses"] + [TV8["poses"][1]])
-    with pytest.raises(DesignFileError, match="exactly 4"):
-        dm.design_from_dict(data)
+    d = dm.design_from_dict(data)  # an edit in progress still loads (and autosaves)
+    with pytest.raises(DesignFileError, match="exactly 4") as info:
+        pipeline.solve(d)
+    assert info.value.field == "poses"
+    data["motion"]["method"] = "fit"
+    data["poses"] = TV8["poses"]
+    with pytest.raises(DesignFileError, match="at least 5"):
+        pipeline.solve(dm.design_from_dict(data))
 
 
 def test_unreadable_files(tmp_path):

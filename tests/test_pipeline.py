@@ -162,3 +162,14 @@ def test_end_effector_mesh_errors_reach_the_user(tmp_path):
     path.write_text(json.dumps(data))
     with pytest.raises(ParaloopError, match="not found"):
         pipeline.solve(design.load_design(path))
+
+
+def test_rounded_inertia_axes_in_a_file_are_accepted_and_orthonormalized():
+    data = json.loads((ASSETS / "tv8.json").read_text())
+    c, s = np.cos(0.3), np.sin(0.3)
+    data["inertia"]["axes"] = np.round([[c, -s, 0], [s, c, 0], [0, 0, 1]], 7).tolist()
+    data["motion"]["criterion"] = "length"
+    d = design.design_from_dict(data)
+    inertia = pipeline.inertia_of(d)
+    assert np.allclose(inertia.axes @ inertia.axes.T, np.eye(3), atol=1e-14)
+    assert pipeline.solve(d, realize=False).mu is not None

@@ -56,9 +56,11 @@ def test_evolution_controls_edit_the_design_and_report_the_fit(tmp_path):
         settle(app)
         assert app.state.design.evolution["starts"] == 2
         assert app.solution.fit.starts_tried <= 2
-        app.panels.evolution.handles["w0"].value = 0.5  # invalid (< 1): error, design kept
+        app.panels.evolution.handles["w0"].value = 0.5  # invalid (< 1): refused, design kept
         settle(app)
-        assert app.error is not None and "w0" in app.error
+        assert "w0" not in app.state.design.evolution and app.notifications[-1][2]
+        assert "w0" in app.notifications[-1][1]
+        assert app.panels.evolution.handles["w0"].value == 3.0  # written back
         assert app.solution.fit is not None
     finally:
         app.close()
