@@ -84,7 +84,7 @@ class Panels:
     """All GUI folders; ``studio`` supplies the state, the worker and file transfers."""
 
     def __init__(self, server: viser.ViserServer, studio: Studio,
-                 criteria: bool, realization: bool) -> None:
+) -> None:
         self.studio = studio
         gui = server.gui
         self.status = gui.add_markdown("**Status:** starting")
@@ -108,10 +108,8 @@ class Panels:
             self.mu = gui.add_slider("mu", min=0.0, max=1.0, step=0.001, initial_value=0.0,
                                      hint="projective: 0 and 1 are mu = inf, 0.5 is mu = 0")
             self.mu_text = gui.add_markdown("mu = inf")
-            self.criterion = self.best_mu = None
-            if criteria:
-                self.criterion = gui.add_dropdown("Criterion", CRITERIA, initial_value="length")
-                self.best_mu = gui.add_button("Best mu")
+            self.criterion = gui.add_dropdown("Criterion", CRITERIA, initial_value="length")
+            self.best_mu = gui.add_button("Best mu")
         self.evolution = EvolutionPanel(gui, self._evolution, handler)
         with gui.add_folder("Loop"):
             self.loop = gui.add_dropdown("Loop", tuple(loop_label(k) for k in range(9)))
@@ -119,20 +117,19 @@ class Panels:
             gui.add_markdown(f"Factorization axes: {legend}. AS = angle-symmetric, "
                              "DB = double-Bennett; S = singularity measure (min over the cycle).")
         self.real: dict[str, Any] = {}
-        if realization:
-            with gui.add_folder("Realization"):
-                r = self.real
-                r["enabled"] = gui.add_checkbox("Realize", initial_value=True)
-                r["p"] = gui.add_number("p", initial_value=10.0, min=1e-3, step=0.5)
-                r["d_fraction"] = gui.add_number("d fraction", initial_value=0.01, min=1e-6,
-                                                 step=0.005)
-                r["rho_fraction"] = gui.add_number("rho fraction", initial_value=0.25,
-                                                   min=1e-6, step=0.05)
-                r["d"] = gui.add_number("d (0 = auto)", initial_value=0.0, min=0.0, step=0.01)
-                r["rho"] = gui.add_number("rho (0 = auto)", initial_value=0.0, min=0.0,
-                                          step=0.01)
-                r["fixed"] = gui.add_text("Fixed vertices", initial_value="",
-                                          hint="vertex=offset pairs, e.g. 0=0.1, 3=-0.2")
+        with gui.add_folder("Realization"):
+            r = self.real
+            r["enabled"] = gui.add_checkbox("Realize", initial_value=True)
+            r["p"] = gui.add_number("p", initial_value=10.0, min=1e-3, step=0.5)
+            r["d_fraction"] = gui.add_number("d fraction", initial_value=0.01, min=1e-6,
+                                             step=0.005)
+            r["rho_fraction"] = gui.add_number("rho fraction", initial_value=0.25,
+                                               min=1e-6, step=0.05)
+            r["d"] = gui.add_number("d (0 = auto)", initial_value=0.0, min=0.0, step=0.01)
+            r["rho"] = gui.add_number("rho (0 = auto)", initial_value=0.0, min=0.0,
+                                      step=0.01)
+            r["fixed"] = gui.add_text("Fixed vertices", initial_value="",
+                                      hint="vertex=offset pairs, e.g. 0=0.1, 3=-0.2")
         self.effector = EffectorPanel(gui, studio, handler)
         with gui.add_folder("Animation"):
             self.u = gui.add_slider("u", min=0.0, max=1.0, step=0.001, initial_value=0.0)
@@ -161,9 +158,7 @@ class Panels:
         self.family.on_update(handler(lambda _: self._motion(family=int(self.family.value))))
         self.mu.on_update(handler(lambda _: self._motion(
             merge="mu", mu=slider_to_mu(self.mu.value), criterion=None)))
-        if self.best_mu is not None:
-            self.best_mu.on_click(handler(lambda _: self._motion(
-                criterion=self.criterion.value)))
+        self.best_mu.on_click(handler(lambda _: self._motion(criterion=self.criterion.value)))
         self.loop.on_update(handler(lambda _: self._edit(
             loop=int(self.loop.value.split(":")[0]))))
         for key, handle in self.real.items():
@@ -232,7 +227,7 @@ class Panels:
             self.studio.request(FULL, sync=True)
         else:
             self.studio.notify("Lock", "at least one target must stay free", error=True)
-            self.studio.request(FULL, sync=True)
+            self.studio.request(FRAME, sync=True)  # unchanged design: only write the box back
 
     def _layer(self, name: str, show: bool) -> None:
         hidden = self.studio.state.hidden
@@ -268,7 +263,7 @@ class Panels:
             m = design.motion
             self.method.value, self.family.value = m.method, str(m.family)
             self.mu.value = mu_to_slider(m.mu)
-            if self.criterion is not None and m.criterion is not None:
+            if m.criterion is not None:
                 self.criterion.value = m.criterion
             self.loop.value = self.loop.options[design.loop]
             self.evolution.sync(design)

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import importlib.util
 import json
 import signal
 import sys
@@ -39,8 +38,6 @@ from .state import StudioState, absolute_mesh, autosave_path_for
 from .worker import FRAME, FULL, PREVIEW, NewestWorker
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "assets" / "designs"
-HAS_SELECTION = importlib.util.find_spec("paraloop_core.selection") is not None
-HAS_REALIZE = importlib.util.find_spec("paraloop_core.realize") is not None
 CACHE_SIZE = 16
 
 
@@ -61,7 +58,7 @@ class Studio:
         self._progress: list[Any] = []
         self._cache: OrderedDict[str, tuple[pipeline.Solution, str]] = OrderedDict()
         self.scene = SceneView(server, self._on_gizmo)
-        self.panels = Panels(server, self, criteria=HAS_SELECTION, realization=HAS_REALIZE)
+        self.panels = Panels(server, self)
         self.fabrication = FabricationPanel(server, self)
         self.plots = Plots(server)
         self.worker = NewestWorker(self._job, on_slow=self._slow, on_slow_done=self._slow_done)
@@ -209,7 +206,7 @@ class Studio:
         key = json.dumps(data, sort_keys=True)
         if key not in self._cache:
             try:
-                self._cache[key] = (pipeline.solve(design, realize=HAS_REALIZE), "")
+                self._cache[key] = (pipeline.solve(design), "")
             except RealizationError as exc:
                 self._cache[key] = (pipeline.solve(design, realize=False),
                                     f"No realization: {exc}")

@@ -154,6 +154,9 @@ def carve(joint_factors: np.ndarray, points: np.ndarray, spaces: Sequence[VoxelS
     if bad or len({frozenset(p) for p in pairs}) != len(pairs):
         raise FabricationError(f"order must list distinct pairs of links 0..5, got {pairs}",
                                "bad-parameters")
+    if len(pairs) != 15:  # a pair left out would not be carved: no collision-freedom claim
+        raise FabricationError(f"order must list all 15 pairs of the six links once, got "
+                               f"{len(pairs)}", "bad-parameters")
     for i, sp in enumerate(spaces):
         if not sp.occupancy.any():
             raise FabricationError(f"design space of link {i} is empty", "empty-space")

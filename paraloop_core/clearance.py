@@ -13,13 +13,18 @@ Scalar polynomials are arrays ``(..., n)`` with ascending coefficients; vector p
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
 from functools import cache
 
 import numpy as np
 
-from . import dq, poly
+from . import dq, loops, poly
 from .tolerance import TOL
+
+#: Samples of the cycle for cheap upper bounds (true distances; t = inf included).
+SAMPLE_U = np.linspace(0.0, 1.0, 48, endpoint=False)
+SAMPLE_T = poly.param_to_t(SAMPLE_U)
 
 
 @cache
@@ -121,6 +126,39 @@ def motion_data(motions: np.ndarray) -> MotionData:
         np.transpose(lines, (0, 3, 1, 2)),
         np.transpose(acted, (0, 3, 1, 2)),
     )
+
+
+class PairMotions:
+    """Relative motions ``R_ab`` (:func:`loops.relative_motion`) of the link pairs ``keys``,
+    grouped by degree as :class:`MotionData` (``groups``; pairs in first-seen order of ``keys``),
+    ``where[(a, b)] = (degree, index)``, and their rotations/translations at :data:`SAMPLE_T`
+    (``rot``, ``trans``)."""
+
+    def __init__(self, jf: np.ndarray, keys: Iterable[tuple[int, int]]):
+        polys = {k: loops.relative_motion(jf, *k) for k in keys if k[0] != k[1]}
+        self.where: dict[tuple[int, int], tuple[int, int]] = {}
+        self.groups: dict[int, MotionData] = {}
+        for deg in sorted({m.shape[0] - 1 for m in polys.values()}):
+            members = [k for k, m in polys.items() if m.shape[0] - 1 == deg]
+            self.groups[deg] = motion_data(np.stack([polys[k] for k in members]))
+            self.where.update({k: (deg, n) for n, k in enumerate(members)})
+        # sampled rigid maps for cheap upper bounds (true distances at 48 times)
+        pose = {deg: poly.evaluate_pose(md.motions[:, None], SAMPLE_T)
+                for deg, md in self.groups.items()}
+        self.rot = {deg: dq.rotation_matrix(q) for deg, q in pose.items()}  # (M, T, 3, 3)
+        self.trans = {deg: dq.translation_of(q) for deg, q in pose.items()}  # (M, T, 3)
+
+    def data(self, keys: Iterable[tuple[int, int]]) -> list[tuple[MotionData, int]]:
+        """``(data, index)`` of the motion of each link pair of ``keys``."""
+        return [(self.groups[deg], n) for deg, n in (self.where[k] for k in keys)]
+
+    def split(self, keys: list[tuple[int, int]]):
+        """``(degree, positions, motion indices)`` for items with link-pair ``keys``."""
+        where = np.array([self.where[k] for k in keys]).reshape(-1, 2)
+        for deg in self.groups:
+            pos = np.flatnonzero(where[:, 0] == deg)
+            if pos.size:
+                yield deg, pos, where[pos, 1]
 
 
 def plucker(seg: np.ndarray) -> np.ndarray:

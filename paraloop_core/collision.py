@@ -13,11 +13,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import loops, poly
+from . import poly
 from .clearance import (
     MotionData,
+    PairMotions,
     min_distance_batch,
-    motion_data,
     moved_line,
     moving_segments,
     plucker,
@@ -65,11 +65,7 @@ def pair_collisions(
 def thin_pair_motions(joint_factors: np.ndarray) -> list[tuple[MotionData, int]]:
     """Motion of ``R_ij`` for each of the nine :data:`THIN_PAIRS` as ``(data, index)``; pairs
     of one degree share one :class:`MotionData`."""
-    motions = [loops.relative_motion(joint_factors, i, j) for i, j in THIN_PAIRS]
-    degrees = [m.shape[-2] - 1 for m in motions]
-    groups = {k: motion_data(np.stack([m for m, g in zip(motions, degrees, strict=True) if g == k]))
-              for k in set(degrees)}
-    return [(groups[k], degrees[:p].count(k)) for p, k in enumerate(degrees)]
+    return PairMotions(joint_factors, THIN_PAIRS).data(THIN_PAIRS)
 
 
 def polyline_segments(polylines: np.ndarray) -> np.ndarray:

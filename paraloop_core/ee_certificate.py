@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import dq, loops
+from . import dq, loops, realize
 from .collision import THIN_PAIRS
 from .endeffector import EndEffector
 from .offsetting import OFFSET_PAIRS
@@ -141,11 +141,6 @@ _ROW_BARS = np.array([(_bar_of(f), _bar_of(m)) for f, m, _, _ in STEP4_ROWS])  #
 
 
 def design_space_radii(dist: np.ndarray, rho: float) -> np.ndarray:
-    """Sec. 5.2 radii ``(6,)`` over all rows: bar vs bar splits D evenly, a bar keeps
-    ``D - rho`` from a pin and ``D`` from P."""
-    radii = np.full(6, np.inf)
-    for me, other in ((0, 1), (1, 0)):
-        bar = _ROW_BARS[:, me]
-        cap = np.where(_ROW_BARS[:, other] >= 0, dist / 2.0, np.where(IS_MESH, dist, dist - rho))
-        np.minimum.at(radii, bar[bar >= 0], cap[bar >= 0])
-    return radii
+    """Sec. 5.2 radii ``(6,)`` over all step-4 rows (:func:`realize.design_space_radii`): bar
+    vs bar splits D evenly, a bar keeps ``D - rho`` from a pin and ``D`` from P."""
+    return realize.design_space_radii(dist, rho, _ROW_BARS, IS_MESH)

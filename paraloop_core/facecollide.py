@@ -27,11 +27,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import dq, loops, poly
+from . import poly
 from .clearance import (
     MotionData,
     min_distance_batch,
-    motion_data,
     moving_segments,
     pder,
     pmul,
@@ -39,9 +38,6 @@ from .clearance import (
 )
 from .collision import pair_collisions
 from .tolerance import TOL
-
-#: Samples of the cycle for cheap upper bounds (true distances; t = inf included).
-SAMPLE_T = poly.param_to_t(np.linspace(0.0, 1.0, 48, endpoint=False))
 
 
 def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -226,30 +222,3 @@ def inside_closed(vertices: np.ndarray, faces: np.ndarray, x: np.ndarray) -> np.
     w = np.sum(np.arctan2(num, den), axis=-1) / (2.0 * np.pi)
     return (np.abs(w) > 0.5).reshape(np.shape(x)[:-1])
 
-
-class PairMotions:
-    """Relative motions ``R_ab`` (:func:`loops.relative_motion`) of the link pairs ``keys``,
-    grouped by degree as :class:`clearance.MotionData` (``groups``), ``where[(a, b)] =
-    (degree, index)``, and their rotations/translations at :data:`SAMPLE_T` (``rot``, ``trans``)."""
-
-    def __init__(self, jf: np.ndarray, keys: set[tuple[int, int]]):
-        polys = {k: loops.relative_motion(jf, *k) for k in keys if k[0] != k[1]}
-        self.where: dict[tuple[int, int], tuple[int, int]] = {}
-        self.groups = {}
-        for deg in sorted({m.shape[0] - 1 for m in polys.values()}):
-            members = [k for k, m in polys.items() if m.shape[0] - 1 == deg]
-            self.groups[deg] = motion_data(np.stack([polys[k] for k in members]))
-            self.where.update({k: (deg, n) for n, k in enumerate(members)})
-        # sampled rigid maps for cheap upper bounds (true distances at 48 times)
-        pose = {deg: poly.evaluate_pose(md.motions[:, None], SAMPLE_T)
-                for deg, md in self.groups.items()}
-        self.rot = {deg: dq.rotation_matrix(q) for deg, q in pose.items()}  # (M, T, 3, 3)
-        self.trans = {deg: dq.translation_of(q) for deg, q in pose.items()}  # (M, T, 3)
-
-    def split(self, keys: list[tuple[int, int]]):
-        """``(degree, positions, motion indices)`` for items with link-pair ``keys``."""
-        where = np.array([self.where[k] for k in keys]).reshape(-1, 2)
-        for deg in self.groups:
-            pos = np.flatnonzero(where[:, 0] == deg)
-            if pos.size:
-                yield deg, pos, where[pos, 1]

@@ -20,11 +20,12 @@ import itertools
 
 import numpy as np
 
-from . import dq, loops, poly
+from . import poly
 from .clearance import (
+    SAMPLE_U,
     MotionData,
+    PairMotions,
     min_distance_batch,
-    motion_data,
     moving_segments,
     segment_distance,
 )
@@ -37,9 +38,6 @@ OFFSET_WAYS = np.array([0, 1, -1])
 _ORANGE_LIFT = np.array([0.5, 1.0, 0.0])
 #: Digits ``(6,)`` of the 729 sequences / the 3^6 shift patterns, axis 0 most significant.
 DIGITS = np.array(list(itertools.product(range(3), repeat=6)))
-#: Samples of the cycle used to reject offset sequences early (t = inf included).
-_SAMPLE_U = np.linspace(0.0, 1.0, 48, endpoint=False)
-_SAMPLE_T = poly.param_to_t(_SAMPLE_U)
 #: Golden-section steps refining each sampled minimum (keeps it a true distance: an upper bound).
 _REFINE_STEPS = 12
 
@@ -105,28 +103,16 @@ class LoopMotions:
 
     def __init__(self, jf: np.ndarray):
         _, self.u = axis_frames(jf)
-        motions = {}
-        for la, lb in OFFSET_PAIRS[:, 2:]:
-            motions.setdefault((int(la), int(lb)), loops.relative_motion(jf, int(la), int(lb)))
         keys = [(int(a), int(b)) for a, b in OFFSET_PAIRS[:, 2:]]
         # exact kernels batch pairs of one degree k: group index and position per pair
-        self.groups: dict[int, MotionData] = {}
-        self.pair_group = np.zeros(42, int)
-        self.pair_index = np.zeros(42, int)
-        pose = np.zeros((42, len(_SAMPLE_T), 8))
-        for k in sorted({motions[key].shape[0] - 1 for key in keys}):
-            members = [p for p, key in enumerate(keys) if motions[key].shape[0] - 1 == k]
-            self.groups[k] = motion_data(np.stack([motions[keys[p]] for p in members]))
-            self.pair_group[members] = k
-            self.pair_index[members] = np.arange(len(members))
-            pose[members] = poly.evaluate_pose(self.groups[k].motions[:, None], _SAMPLE_T)
+        mot = PairMotions(jf, keys)
+        self.groups: dict[int, MotionData] = mot.groups
+        where = np.array([mot.where[key] for key in keys])
+        self.pair_group, self.pair_index = where[:, 0], where[:, 1]
         # the nine thin pairs are the bar-bar pairs (2i, 2j) with the same relative motions
-        bar_pair = {(int(e1) // 2, int(e2) // 2): p for p, (e1, e2, _, _) in enumerate(OFFSET_PAIRS)
-                    if e1 % 2 == 0 and e2 % 2 == 0}
-        self.thin = [(self.groups[self.pair_group[bar_pair[ij]]], self.pair_index[bar_pair[ij]])
-                     for ij in THIN_PAIRS]
-        self.rot = dq.rotation_matrix(pose)  # (42, T, 3, 3)
-        self.trans = dq.translation_of(pose)  # (42, T, 3)
+        self.thin = mot.data(THIN_PAIRS)
+        self.rot = np.stack([mot.rot[k][n] for k, n in where])  # (42, T, 3, 3)
+        self.trans = np.stack([mot.trans[k][n] for k, n in where])  # (42, T, 3)
 
 
 class OffsetSearch:
@@ -176,7 +162,7 @@ class OffsetSearch:
                                     self.moved[pair, ref[:, 2]], self.moved[pair, ref[:, 3]])
             best = np.argmin(dist, axis=1)
             self.upper[new] = dist[np.arange(new.size), best]
-            self.best_u[new] = _SAMPLE_U[best]
+            self.best_u[new] = SAMPLE_U[best]
         if not refine:
             return
         # Far values never fail and values below 2 rho already reject (true distances).
@@ -192,7 +178,7 @@ class OffsetSearch:
     def _golden(self, pair, fixed, moving, u0) -> np.ndarray:
         """Golden-section minimum in ``[u0 - du, u0 + du]`` (vectorized; true distances)."""
         g = (np.sqrt(5.0) - 1.0) / 2.0
-        a, b = u0 - _SAMPLE_U[1], u0 + _SAMPLE_U[1]
+        a, b = u0 - SAMPLE_U[1], u0 + SAMPLE_U[1]
         c, e = b - g * (b - a), a + g * (b - a)
         fc, fe = (self._distance_at(pair, fixed, moving, u) for u in (c, e))
         best = np.minimum(fc, fe)

@@ -58,15 +58,23 @@ class Realization:
         return float(self.pair_distance.min())
 
 
-def design_space_radii(pair_distance: np.ndarray, rho: float) -> np.ndarray:
-    """Largest cylinder radius ``(6,)`` about each bar that stays collision-free (Sec. 5.2):
-    two bars share their distance equally, against a pin (radius rho) a bar gets ``D - rho``."""
+#: ``(42, 2)``: link of each bar of the :data:`offsetting.OFFSET_PAIRS` rows (-1 for pins).
+_PAIR_BARS = np.where(OFFSET_PAIRS[:, :2] % 2 == 0, OFFSET_PAIRS[:, :2] // 2, -1)
+
+
+def design_space_radii(dist: np.ndarray, rho: float, bars: np.ndarray = _PAIR_BARS,
+                       mesh: np.ndarray | None = None) -> np.ndarray:
+    """Largest cylinder radius ``(6,)`` about each bar that stays collision-free (Sec. 5.2)
+    from the minimum distances ``dist`` ``(N,)`` of rows whose two parts are the bars of links
+    ``bars`` ``(N, 2)`` (-1 for a pin or P; default: the rows of
+    :data:`offsetting.OFFSET_PAIRS`): two bars share their distance equally, against a pin
+    (radius rho) a bar gets ``D - rho``, against P (rows in ``mesh``) all of D."""
     radii = np.full(6, np.inf)
-    for (e1, e2), dist in zip(OFFSET_PAIRS[:, :2], pair_distance, strict=True):
-        both_bars = e1 % 2 == 0 and e2 % 2 == 0
-        for e in (e1, e2):
-            if e % 2 == 0:
-                radii[e // 2] = min(radii[e // 2], dist / 2.0 if both_bars else dist - rho)
+    mesh = np.zeros(len(dist), dtype=bool) if mesh is None else mesh
+    for me, other in ((0, 1), (1, 0)):
+        bar = bars[:, me]
+        cap = np.where(bars[:, other] >= 0, dist / 2.0, np.where(mesh, dist, dist - rho))
+        np.minimum.at(radii, bar[bar >= 0], cap[bar >= 0])
     return radii
 
 

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .clearance import min_distance_batch, segment_distance
+from .clearance import PairMotions, min_distance_batch, segment_distance
 from .collision import pair_collisions
 from .ee_certificate import (
     BASE_PAIRS,
@@ -29,7 +29,6 @@ from .ee_certificate import (
 from .endeffector import EndEffector, ee_length, initial_polyline
 from .errors import RealizationError
 from .facecollide import (
-    PairMotions,
     inside_closed,
     mesh_segment_clearance,
     mesh_segment_collisions,

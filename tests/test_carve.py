@@ -183,6 +183,8 @@ def test_bad_inputs_refused():
     with pytest.raises(FabricationError) as err:
         carve.carve(jf, pts, spaces, keep_radius=radius, order=[(0, 0)])
     assert err.value.reason == "bad-parameters"
+    with pytest.raises(FabricationError, match="all 15 pairs"):  # an uncarved pair
+        carve.carve(jf, pts, spaces, keep_radius=radius, order=carve.DEFAULT_ORDER[1:])
     with pytest.raises(FabricationError) as err:
         meshing.space_mesh(spaces[1].with_occupancy(np.pad(np.ones((2, 2, 2), bool), 1)))
     assert err.value.reason == "empty-space"

@@ -253,7 +253,6 @@ def test_mu_slider_and_merged_history(studio):
     assert studio.solution.design.motion.family == 1 or studio.error
 
 
-@pytest.mark.skipif(not studio_mod.HAS_SELECTION, reason="selection module missing")
 def test_best_mu_button(studio):
     studio.panels.criterion.value = "length"
     click(studio.panels.best_mu)
@@ -348,7 +347,6 @@ def test_autosave_and_restore(studio, tmp_path):
         server.stop()
 
 
-@pytest.mark.skipif(not studio_mod.HAS_REALIZE, reason="realize module missing")
 def test_realization_panel_and_clearance_plot(studio):
     real = studio.solution.realization
     assert real is not None

@@ -35,6 +35,8 @@ def test_state_history():
     assert st.undo() and st.design is d and not st.undo()
     assert st.redo() and np.allclose(st.design.poses[3].position, 1.0)
     assert not st.move_pose(0, np.zeros(3), np.array([1.0, 0, 0, 0]), commit=True)  # locked
+    assert not st.remove_pose(1)  # every design keeps at least four targets
+    st.add_pose(st.design.poses[1])
     assert st.remove_pose(1) and st.design.locked == (0, 1)
 
 
