@@ -66,9 +66,9 @@ def segment_distance(p0: np.ndarray, p1: np.ndarray, q0: np.ndarray, q1: np.ndar
     """Distance ``(...)`` between segments ``[p0, p1]`` and ``[q0, q1]`` (points ``(..., 3)``,
     broadcasting); exact for parallel and zero-length segments (clamped closest points)."""
     d1, d2, r = np.broadcast_arrays(p1 - p0, q1 - q0, p0 - q0)
-    a, e, b = _dot(d1, d1), _dot(d2, d2), _dot(d1, d2)
-    c, f = _dot(d1, r), _dot(d2, r)
-    tiny = TOL.zero * (a + e + _dot(r, r)) + 1e-300
+    a, e, b = dot(d1, d1), dot(d2, d2), dot(d1, d2)
+    c, f = dot(d1, r), dot(d2, r)
+    tiny = TOL.zero * (a + e + dot(r, r)) + 1e-300
     a_ok, e_ok = a > tiny, e > tiny
     den = a * e - b * b
     # Interior solution on the lines; parallel (den ~ 0) starts from s = 0 and clamps below.
@@ -82,10 +82,11 @@ def segment_distance(p0: np.ndarray, p1: np.ndarray, q0: np.ndarray, q1: np.ndar
     s = np.where(u != uc, np.clip((b * uc - c) / np.where(a_ok, a, 1.0), 0.0, 1.0), s)
     s = np.where(a_ok, s, 0.0)
     diff = r + s[..., None] * d1 - uc[..., None] * d2
-    return np.sqrt(_dot(diff, diff))
+    return np.sqrt(dot(diff, diff))
 
 
-def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise dot product ``(...)`` of vectors ``(..., 3)``."""
     return np.einsum("...i,...i->...", a, b)
 
 
@@ -184,19 +185,9 @@ def moving_segments(md: MotionData, idx: np.ndarray, seg: np.ndarray, t: np.ndar
     t = inf are exact and overflow-free.
     """
     xh = np.concatenate([seg, np.ones(seg.shape[:-1] + (1,))], axis=-1)
-    coeff = np.einsum("bcjn,bej->bnec", md.points[idx], xh)[:, :, None]  # (B, n, 1, 2, 3)
-    nrm = md.norm[idx][:, :, None]  # (B, n, 1)
-    big = np.abs(t) > 1.0
-    s = np.where(big, 1.0 / np.where(big, t, 1.0), t)  # 1/inf -> 0
-    n = coeff.shape[1]
-    lo, hi = coeff[:, n - 1], coeff[:, 0]
-    nlo, nhi = nrm[:, n - 1], nrm[:, 0]
-    s4 = s[..., None, None]
-    for k in range(n - 2, -1, -1):  # Horner over the tiny degree
-        lo, hi = lo * s4 + coeff[:, k], hi * s4 + coeff[:, n - 1 - k]
-        nlo, nhi = nlo * s + nrm[:, k], nhi * s + nrm[:, n - 1 - k]
-    x = np.where(big[..., None, None], hi, lo)
-    return x / np.where(big, nhi, nlo)[..., None, None]
+    coeff = np.einsum("bcjn,bej->bnec", md.points[idx], xh)[:, None]  # (B, 1, n, 2, 3)
+    x = poly.evaluate_scaled(coeff, t, 2)
+    return x / poly.evaluate_scaled(md.norm[idx][:, None], t, 0)[..., None, None]
 
 
 def _critical_times(md: MotionData, idx: np.ndarray, fixed: np.ndarray, moving: np.ndarray):

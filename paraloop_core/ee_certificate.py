@@ -21,21 +21,17 @@ import numpy as np
 from . import dq, loops, realize
 from .collision import THIN_PAIRS
 from .endeffector import EndEffector
-from .offsetting import OFFSET_PAIRS
+from .offsetting import OFFSET_PAIRS, cyclic_distance
 from .realize import Realization
 
 #: Part code of P in the pair tables.
 MESH = -1
 
 
-def _cyc(a: int, b: int) -> int:
-    return min((b - a) % 6, (a - b) % 6)
-
-
 def _edge_link(e: int) -> int:
     """Link carrying edge e, relative to link 3: a pin takes the neighbour closer to 3."""
     i = e // 2
-    return i if e % 2 == 0 else min((i, (i + 1) % 6), key=lambda j: _cyc(3, j))
+    return i if e % 2 == 0 else min((i, (i + 1) % 6), key=lambda j: cyclic_distance(3, j))
 
 
 def _thin_rows() -> list[tuple[tuple[int, int], tuple[int, int], tuple[int, int]]]:

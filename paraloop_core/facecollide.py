@@ -30,6 +30,7 @@ import numpy as np
 from . import poly
 from .clearance import (
     MotionData,
+    dot,
     min_distance_batch,
     moving_segments,
     pder,
@@ -40,26 +41,21 @@ from .collision import pair_collisions
 from .tolerance import TOL
 
 
-def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return np.einsum("...i,...i->...", a, b)
-
-
 def _in_face(y: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray, n: np.ndarray
              ) -> np.ndarray:
     """Barycentric test: the projection of y lies on the inner side of all three edges."""
-    return ((_dot(np.cross(b - a, y - a), n) >= 0) & (_dot(np.cross(c - b, y - b), n) >= 0)
-            & (_dot(np.cross(a - c, y - c), n) >= 0))
+    return ((dot(np.cross(b - a, y - a), n) >= 0) & (dot(np.cross(c - b, y - b), n) >= 0)
+            & (dot(np.cross(a - c, y - c), n) >= 0))
 
 
 def point_triangle_distance(x: np.ndarray, tri: np.ndarray) -> np.ndarray:
     """Distance ``(...)`` of points ``(..., 3)`` to solid triangles ``(..., 3, 3)`` (broadcast)."""
     a, b, c = tri[..., 0, :], tri[..., 1, :], tri[..., 2, :]
     n = np.cross(b - a, c - a)
-    nn = _dot(n, n)
-    h = _dot(x - a, n) / nn  # signed height in units of |n|
+    nn = dot(n, n)
+    h = dot(x - a, n) / nn  # signed height in units of |n|
     inside = _in_face(x, a, b, c, n)  # the cross products ignore the normal component of x
     plane = np.abs(h) * np.sqrt(nn)
-    # the point goes first: segment_distance mishandles a zero-length *second* segment
     edge = np.minimum(np.minimum(segment_distance(x, x, a, b), segment_distance(x, x, b, c)),
                       segment_distance(x, x, c, a))
     return np.where(inside, plane, edge)
@@ -70,7 +66,7 @@ def segment_triangle_distance(seg: np.ndarray, tri: np.ndarray) -> np.ndarray:
     p, q = seg[..., 0, :], seg[..., 1, :]
     a, b, c = tri[..., 0, :], tri[..., 1, :], tri[..., 2, :]
     n = np.cross(b - a, c - a)
-    hp, hq = _dot(p - a, n), _dot(q - a, n)
+    hp, hq = dot(p - a, n), dot(q - a, n)
     # a proper crossing of the plane inside the triangle: distance 0
     w = np.where(hp != hq, hp / np.where(hp != hq, hp - hq, 1.0), 0.0)
     cross = p + w[..., None] * (q - p)
@@ -89,7 +85,7 @@ def _plane_polys(md: MotionData, idx: np.ndarray, tri: np.ndarray, x: np.ndarray
     xh = np.concatenate([x, np.ones((len(x), 1))], axis=1)
     xt = np.einsum("bcjn,bj->bcn", md.points[idx], xh)
     nrm = md.norm[idx]
-    return np.einsum("bc,bcn->bn", n, xt) - _dot(n, tri[:, 0])[:, None] * nrm, nrm
+    return np.einsum("bc,bcn->bn", n, xt) - dot(n, tri[:, 0])[:, None] * nrm, nrm
 
 
 def _times(roots: np.ndarray) -> np.ndarray:
@@ -112,7 +108,7 @@ def face_segment_hits(md: MotionData, idx: np.ndarray, tri: np.ndarray, seg: np.
     n = np.cross(b - a, c - a)
     size = np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1) + np.ptp(tri, axis=1).max(axis=1)
     # real parts of complex roots are no crossings: the height must vanish there too
-    height = np.abs(_dot(x - a, n)) / np.linalg.norm(n, axis=-1)
+    height = np.abs(dot(x - a, n)) / np.linalg.norm(n, axis=-1)
     on_face = (height <= TOL.residual * size[:, None, None]) & _in_face(x, a, b, c, n)
     home = moving_segments(md, idx, seg, np.full((nb, 1), np.inf))[:, 0]
     return on_face.any(axis=(1, 2)) | (segment_triangle_distance(home, tri) <= 0.0)
@@ -217,8 +213,8 @@ def inside_closed(vertices: np.ndarray, faces: np.ndarray, x: np.ndarray) -> np.
     d = vertices[faces][None] - np.asarray(x, np.float64).reshape(-1, 1, 1, 3)  # (X, F, 3, 3)
     a, b, c = d[..., 0, :], d[..., 1, :], d[..., 2, :]
     la, lb, lc = (np.linalg.norm(v, axis=-1) for v in (a, b, c))
-    num = _dot(a, np.cross(b, c))
-    den = la * lb * lc + _dot(a, b) * lc + _dot(b, c) * la + _dot(c, a) * lb
+    num = dot(a, np.cross(b, c))
+    den = la * lb * lc + dot(a, b) * lc + dot(b, c) * la + dot(c, a) * lb
     w = np.sum(np.arctan2(num, den), axis=-1) / (2.0 * np.pi)
     return (np.abs(w) > 0.5).reshape(np.shape(x)[:-1])
 

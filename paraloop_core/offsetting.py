@@ -42,7 +42,8 @@ DIGITS = np.array(list(itertools.product(range(3), repeat=6)))
 _REFINE_STEPS = 12
 
 
-def _cyc(a: int, b: int) -> int:
+def cyclic_distance(a: int, b: int) -> int:
+    """Steps between links (or axes) a and b around the six-cycle."""
     return min((b - a) % 6, (a - b) % 6)
 
 
@@ -58,11 +59,11 @@ def _offset_pairs() -> np.ndarray:
     for e1, e2 in itertools.combinations(range(12), 2):
         adjacent = (e2 - e1) % 12 in (1, 11)
         # consecutive bars are separated by the offset, consecutive pins share a link
-        consecutive = e1 % 2 == e2 % 2 and _cyc(e1 // 2, e2 // 2) == 1
+        consecutive = e1 % 2 == e2 % 2 and cyclic_distance(e1 // 2, e2 // 2) == 1
         if adjacent or consecutive:
             continue
         la, lb = min(((a, b) for a in _edge_links(e1) for b in _edge_links(e2)),
-                     key=lambda ab: (_cyc(*ab), ab))
+                     key=lambda ab: (cyclic_distance(*ab), ab))
         out.append((e1, e2, la, lb))
     assert len(out) == 42
     return np.array(out)
@@ -70,8 +71,8 @@ def _offset_pairs() -> np.ndarray:
 
 #: ``(42, 4)``: edge 1, edge 2 (edge e joins points e and e+1 mod 12), fixed link, moving link.
 OFFSET_PAIRS = _offset_pairs()
-#: Vertex v of the 12-polyline lies on axis ``_V_AXIS[v]``; slot 0 = E_i, slot 1 = S_{i+1}.
-_V_AXIS = np.array([((v // 2) - 1) % 6 if v % 2 == 0 else v // 2 for v in range(12)])
+#: Vertex v of the 12-polyline lies on axis ``V_AXIS[v]``; slot 0 = E_i, slot 1 = S_{i+1}.
+V_AXIS = np.array([((v // 2) - 1) % 6 if v % 2 == 0 else v // 2 for v in range(12)])
 _V_SLOT = np.array([1 if v % 2 == 0 else 0 for v in range(12)])
 
 
@@ -81,10 +82,10 @@ def _items() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     pair_of, refs, seq_items, start = [], [], np.zeros((729, 42), int), 0
     for p, (e1, e2, _, _) in enumerate(OFFSET_PAIRS):
         verts = np.array([e1, (e1 + 1) % 12, e2, (e2 + 1) % 12])
-        axes = np.unique(_V_AXIS[verts])
+        axes = np.unique(V_AXIS[verts])
         for code in itertools.product(range(3), repeat=len(axes)):
             dig = dict(zip(axes.tolist(), code, strict=True))
-            refs.append([(a * 3 + dig[a]) * 2 + s for a, s in zip(_V_AXIS[verts], _V_SLOT[verts],
+            refs.append([(a * 3 + dig[a]) * 2 + s for a, s in zip(V_AXIS[verts], _V_SLOT[verts],
                                                                      strict=True)])
             pair_of.append(p)
         weights = 3 ** np.arange(len(axes) - 1, -1, -1)  # itertools.product order
@@ -142,7 +143,7 @@ class OffsetSearch:
 
     def points(self, seq: int) -> np.ndarray:
         """The 12 vertices ``S_0, E_0, ..., S_5, E_5`` ``(12, 3)`` of sequence ``seq``."""
-        return self.table[(_V_AXIS * 3 + DIGITS[seq][_V_AXIS]) * 2 + _V_SLOT]
+        return self.table[(V_AXIS * 3 + DIGITS[seq][V_AXIS]) * 2 + _V_SLOT]
 
     def _segments(self, items: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         pts = self.table[_ITEM_REFS[items]]  # (I, 4, 3)

@@ -73,17 +73,25 @@ def evaluate_pose(c: np.ndarray, t: np.ndarray) -> np.ndarray:
 
     For ``|t| > 1`` the reversed polynomial is evaluated at ``1/t`` (same pose, scaled).
     """
+    return evaluate_scaled(c, t, 1)
+
+
+def evaluate_scaled(c: np.ndarray, t: np.ndarray, trailing: int) -> np.ndarray:
+    """``C(t) / max(1, |t|)**n`` ``(..., *trail)`` of polynomials ``c`` ``(..., n+1, *trail)``
+    with ``trailing`` axes after the (ascending) coefficient axis; ``t`` broadcasts against the
+    batch shape ``(...)``. Horner in t for ``|t| <= 1``, else in ``1/t`` over the reversed
+    coefficients: overflow-free, and ``t = +-inf`` gives the leading coefficient."""
     t = np.asarray(t, dtype=np.float64)
     big = np.abs(t) > 1.0
-    s = np.where(big, 1.0 / np.where(big, t, 1.0), t)[..., None]  # 1/inf -> 0
-    n = c.shape[-2] - 1
-    # small |t|: Horner in t; big |t|: Horner in 1/t over reversed coefficients.
-    lo = c[..., n, :]
-    hi = c[..., 0, :]
-    for k in range(n - 1, -1, -1):
-        lo = lo * s + c[..., k, :]
-        hi = hi * s + c[..., n - k, :]
-    return np.where(big[..., None], hi, lo)
+    s = np.where(big, 1.0 / np.where(big, t, 1.0), t)  # 1/inf -> 0
+    s = s.reshape(s.shape + (1,) * trailing)
+    coef = np.moveaxis(c, c.ndim - 1 - trailing, 0)
+    n = coef.shape[0] - 1
+    lo, hi = coef[n], coef[0]
+    for k in range(n - 1, -1, -1):  # loop over the (tiny) degree, not over data
+        lo = lo * s + coef[k]
+        hi = hi * s + coef[n - k]
+    return np.where(big.reshape(s.shape), hi, lo)
 
 
 def param_to_t(u: np.ndarray) -> np.ndarray:

@@ -34,13 +34,20 @@ from .facecollide import (
     mesh_segment_collisions,
     segment_triangle_distance,
 )
-from .offsetting import DIGITS, OFFSET_WAYS, LoopMotions, OffsetSearch, sequence_order
+from .offsetting import (
+    DIGITS,
+    OFFSET_WAYS,
+    V_AXIS,
+    LoopMotions,
+    OffsetSearch,
+    sequence_order,
+)
 from .realize import Realization, check_params
 
 
 def _axes_of(pts: tuple[int, ...]) -> set[int]:
     """Axes whose offset digit moves 12-polyline points (S_i on A_{i-1}, E_i on A_i)."""
-    return {((v // 2) - 1) % 6 if v % 2 == 0 else v // 2 for v in pts if 0 <= v < 12}
+    return {int(V_AXIS[v]) for v in pts if 0 <= v < 12}
 
 
 #: ``(rows, 6)``: which offset digits each step-4 row depends on (cache key mask).
