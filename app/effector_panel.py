@@ -152,18 +152,25 @@ class EffectorPanel:
             if len(upload.content) > MAX_UPLOAD_BYTES:
                 raise ValueError(f"{len(upload.content) / 2**20:.0f} MiB is more than the "
                                  f"limit {MAX_UPLOAD_BYTES // 2**20} MiB")
-            path = store_mesh(upload.name, upload.content)
-        except (ValueError, OSError) as exc:
+        except ValueError as exc:
             self.studio.notify(f"Cannot use {upload.name}", f"{exc} (the design is unchanged)",
                                error=True)
             return
-        self.studio.state.add_task("mesh", path)
+        # hashing and writing the file is the worker's job: callbacks stay cheap
+        self.studio.state.add_task("mesh", (upload.name, upload.content))
         self.studio.request(FRAME)
 
     # --- worker side ------------------------------------------------------------------------
-    def check_mesh(self, path: Path) -> None:
-        """Validate a stored upload (worker); a good mesh becomes the design's end-effector
-        with automatic L and R, a bad one is deleted and reported."""
+    def check_mesh(self, upload: tuple[str, bytes]) -> None:
+        """Store and validate an upload ``(name, content)`` (worker); a good mesh becomes the
+        design's end-effector with automatic L and R, a bad one is deleted and reported."""
+        name, content = upload
+        try:
+            path = store_mesh(name, content)
+        except OSError as exc:
+            self.studio.notify(f"Cannot use {name}", f"{exc} (the design is unchanged)",
+                               error=True)
+            return
         try:
             body = endeffector.load_mesh(path)
         except EndEffectorError as exc:

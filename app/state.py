@@ -183,7 +183,7 @@ class StudioState:
     # --- worker tasks -----------------------------------------------------------------------
     def add_task(self, name: str, arg: Any = None) -> None:
         """Queue a task for the worker (asked twice: runs once, with the last ``arg``: the
-        client who gets a fabrication download, the path of an uploaded mesh)."""
+        client who gets a fabrication download, an uploaded mesh's (name, content))."""
         with self._lock:
             self.tasks.pop(name, None)
             self.tasks[name] = arg

@@ -106,11 +106,11 @@ def _subsamples(u: np.ndarray, idx: np.ndarray, counts: np.ndarray) -> np.ndarra
     (halfway to its cyclic neighbours)."""
     nxt = np.append(u[1:], u[0] + 1.0)
     prv = np.insert(u[:-1], 0, u[-1] - 1.0)
-    out = []
-    for i, n in zip(idx, np.clip(counts, 1, 64).astype(int), strict=True):
-        lo, hi = (u[i] + prv[i]) / 2, (u[i] + nxt[i]) / 2
-        out.append(lo + (hi - lo) * (np.arange(n) + 0.5) / n)
-    return np.unique(np.concatenate(out) % 1.0)
+    n = np.clip(counts, 1, 64).astype(int)
+    cell = np.repeat(np.asarray(idx), n)  # cell of each new parameter
+    k = np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n)  # its index within the cell
+    lo, hi = (u[cell] + prv[cell]) / 2, (u[cell] + nxt[cell]) / 2
+    return np.unique((lo + (hi - lo) * (k + 0.5) / np.repeat(n, n)) % 1.0)
 
 
 def verify_assembly(asm: Assembly, samples: int = 720, search_mm: float | None = None,
