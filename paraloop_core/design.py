@@ -145,7 +145,7 @@ def _pose(v: Any, path: str) -> Pose:
             raise DesignFileError(f"{path}.{key}", "missing")
     q = _vec(d["wxyz"], 4, f"{path}.wxyz")
     n = float(np.linalg.norm(q))
-    if n < 1e-9:
+    if n < TOL.zero:
         raise DesignFileError(f"{path}.wxyz", "quaternion must be nonzero")
     return Pose(_vec(d["position"], 3, f"{path}.position"), q / n)
 

@@ -19,6 +19,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .tolerance import TOL
+
 IDENTITY = np.array([1.0, 0, 0, 0, 0, 0, 0, 0])
 
 
@@ -175,7 +177,7 @@ def from_pos_wxyz(position: np.ndarray, wxyz: np.ndarray) -> np.ndarray:
     if position.shape[-1:] != (3,) or wxyz.shape[-1:] != (4,):
         raise ValueError("position must be (..., 3) and wxyz (..., 4)")
     n = np.linalg.norm(wxyz, axis=-1, keepdims=True)
-    if not np.all(np.isfinite(n)) or np.any(n < 1e-12):
+    if not np.all(np.isfinite(n)) or np.any(n < TOL.zero):
         raise ValueError("wxyz quaternion must be finite and nonzero")
     p = wxyz / n
     tq = np.concatenate([np.zeros(position.shape[:-1] + (1,)), position], axis=-1)
@@ -265,7 +267,7 @@ def screw_parameters(q: np.ndarray) -> dict[str, np.ndarray]:
     d0, dv = qn[..., 4], qn[..., 5:8]
     s = np.linalg.norm(pv, axis=-1)
     angle = 2.0 * np.arctan2(s, p0)
-    rot = s > 1e-12
+    rot = s > TOL.zero
     safe_s = np.where(rot, s, 1.0)
     u = pv / safe_s[..., None]
     # Q = cos(a/2) + sin(a/2) (u + eps m) with dual angle a + eps d: matching parts gives

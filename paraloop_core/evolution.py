@@ -28,6 +28,7 @@ from .evolution_stages import (
     cyclic_order,
     evolve_start,
 )
+from .tolerance import TOL
 
 __all__ = ["EvolutionSettings", "FitResult", "evolve_starts", "fit_motion", "fit_result_to_dict"]
 
@@ -70,11 +71,11 @@ def check_targets(targets: np.ndarray, inertia: metric.Inertia) -> np.ndarray:
     if bad.size:
         raise FitError(f"target pose {int(bad[0])} has non-finite entries", "not-finite")
     pn = np.linalg.norm(s[:, :4], axis=1)
-    if np.any(pn <= 1e-12 * (1.0 + np.linalg.norm(s[:, 4:], axis=1))):
+    if np.any(pn <= TOL.zero * (1.0 + np.linalg.norm(s[:, 4:], axis=1))):
         raise ValueError(f"target pose {int(np.argmin(pn))} has a zero primal part (not a pose)")
     s = dq.study_project(dq.normalize(s))
     d = np.sqrt(metric.distance_sq(s[:, None], s[None], inertia))
-    i, j = np.nonzero(np.triu(d <= 1e-9 * (1.0 + d.max()), 1))
+    i, j = np.nonzero(np.triu(d <= TOL.duplicate * (1.0 + d.max()), 1))
     if i.size:
         raise FitError(f"target poses {int(i[0])} and {int(j[0])} coincide: every target must "
                        "be a distinct pose", "duplicate-poses")

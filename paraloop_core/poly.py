@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import dq
+from .tolerance import TOL
 
 
 def as_poly(c: np.ndarray, name: str = "polynomial") -> np.ndarray:
@@ -151,7 +152,7 @@ def make_monic(c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     lead = c[..., -1, :]
     pn = np.linalg.norm(lead[..., :4], axis=-1)
     scale = np.max(np.abs(c), axis=(-2, -1))
-    if np.any(pn <= 1e-12 * scale):
+    if np.any(pn <= TOL.zero * scale):
         raise ValueError(
             "leading coefficient has zero primal part (the motion is not defined at t = inf); "
             "reparametrize the motion first"

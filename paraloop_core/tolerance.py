@@ -22,6 +22,8 @@ class Tolerance:
     residual: float = 1e-7
     #: max deviation of R R^T from the identity accepted as orthonormal (then re-orthonormalized).
     orthonormal: float = 1e-6
+    #: relative metric distance below which two target poses count as the same pose.
+    duplicate: float = 1e-9
     #: absolute zero for normalized quantities (degenerate geometry).
     zero: float = 1e-12
 
