@@ -10,7 +10,7 @@ Sec. 5.2: cylindrical design spaces from the certificate.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -127,12 +127,13 @@ def realization_to_dict(r: Realization) -> dict:
     }
 
 
-def _free_candidates(lp: LoopMotions, polys: np.ndarray) -> Iterator[int]:
-    """Positions of the collision-free polylines ``(C, 6, 3)``, in order, checked in chunks."""
+def _free_candidates(n: int, colliding: Callable[[int, int], np.ndarray]) -> Iterator[int]:
+    """Positions of the collision-free ones of ``n`` ordered candidates, checked in growing
+    chunks: ``colliding(start, stop)`` is the collision mask of candidates ``start:stop``."""
     start, size = 0, 16
-    while start < len(polys):
-        stop = min(start + size, len(polys))
-        for pos in np.flatnonzero(~colliding_polylines(lp.thin, polys[start:stop])):
+    while start < n:
+        stop = min(start + size, n)
+        for pos in np.flatnonzero(~colliding(start, stop)):
             yield start + int(pos)
         start, size = stop, size * 2
 
@@ -149,6 +150,102 @@ def check_params(p: float, rho: float, d: float, max_k: int) -> None:
         bad.append(f"max_k must be an integer >= 1, got {max_k!r}")
     if bad:
         raise RealizationError("bad realization parameters: " + "; ".join(bad), "bad-parameters")
+
+
+class Search:
+    """The search of Sec. 5.1 for one loop, for the bars alone: :meth:`run` drives the shift
+    levels, candidate order, thin checks, step 4 and the steps back to step 3; the hooks
+    (:meth:`initial`, :meth:`start`, :meth:`lengths`, :meth:`colliding`, :meth:`step4`,
+    :meth:`result`, :attr:`cap_message`) are what :mod:`realize_ee` overrides for an
+    end-effector."""
+
+    #: ``cap-reached`` message; ``str.format`` fields max_k, p, d, rho, checks, steps_back.
+    cap_message = ("no collision-free realization with k <= {max_k} (p = {p}, d = {d:.4g}, "
+                   "rho = {rho:.4g}): {checks} thin polylines checked, {steps_back} "
+                   "collision-free ones failed the 2 rho clearance; raise max_k, lower rho/d "
+                   "or fix fewer vertices")
+
+    def __init__(self, joint_factors: np.ndarray, fixed: dict[int, float] | None):
+        if fixed is not None and len(fixed) >= 6:
+            raise RealizationError("at most five vertices can be fixed (the search shifts the "
+                                   f"free ones), got {len(fixed)}", "bad-parameters")
+        self.jf = np.asarray(joint_factors, dtype=np.float64)
+        self.fixed = fixed
+
+    def initial(self) -> tuple[np.ndarray, float]:
+        """Step 1: the initial polyline ``(6, 3)`` and its length l."""
+        _, v0 = shortest_polyline(self.jf, self.fixed)
+        length = float(polyline_length(v0))
+        if not length > 1e-12 * (1.0 + np.abs(v0).max()):
+            raise RealizationError("the shortest polyline has zero length (all axes meet in "
+                                   "one point): the loop is spherical, not realizable by bars",
+                                   "singular-loop")
+        return v0, length
+
+    def start(self) -> None:
+        """Per-loop data, once the parameters (``self.d``, ``self.rho``, ...) are checked."""
+        self.lp = LoopMotions(self.jf)
+
+    def lengths(self, polys: np.ndarray) -> np.ndarray:
+        """Lengths ``(C,)`` ordering the candidates ``(C, 6, 3)`` of a level."""
+        return polyline_length(polys)
+
+    def colliding(self, k: int, tau: np.ndarray, polys: np.ndarray
+                  ) -> Callable[[int, int], np.ndarray]:
+        """Thin check of level k's ordered candidates ``(C, 6, 3)`` (shifts ``(C, 6)``): the
+        mask of candidates ``start:stop`` (for :func:`_free_candidates`)."""
+        return lambda start, stop: colliding_polylines(self.lp.thin, polys[start:stop])
+
+    def step4(self, v: np.ndarray) -> OffsetSearch:
+        """Step 4 for the thin polyline ``v`` ``(6, 3)``: ``run(order) -> (seq, examined)``."""
+        return OffsetSearch(self.lp, v, self.d, self.rho)
+
+    def result(self, step: OffsetSearch, seq: int, tau: np.ndarray, v: np.ndarray,
+               stats: dict) -> Realization:
+        """The realization by offset sequence ``seq`` of ``step``; ``stats`` lacks the
+        ``length_ratio``."""
+        dist, t = step.certificate(seq)
+        points = step.points(seq)
+        stats["length_ratio"] = float(polyline_length(points)) / self.length
+        return Realization(self.jf, points, float(self.rho), float(self.d), self.length,
+                           float(self.p), tau, OFFSET_WAYS[DIGITS[seq]], self.v0, v,
+                           OFFSET_PAIRS, dist, t, design_space_radii(dist, self.rho), stats)
+
+    def run(self, *, p: float, rho: float | None, d: float | None, d_fraction: float,
+            rho_fraction: float, max_k: int):
+        """Parameters as :func:`realize`; the :meth:`result` of the first success."""
+        self.v0, self.length = v0, length = self.initial()
+        self.d = d = d_fraction * length if d is None else d
+        self.rho = rho = rho_fraction * d if rho is None else rho
+        self.p = p
+        check_params(p, rho, d, max_k)
+        self.start()
+        free = np.array([i not in (self.fixed or {}) for i in range(6)])
+        patterns = DIGITS[np.all(DIGITS[:, ~free] == 0, axis=1)][1:]  # 3^(6-f) - 1, index order
+        tau_unit = np.where(patterns == 2, -1, patterns)
+        checks = steps_back = tried = 0
+        for k in range(max_k + 1):
+            tau = np.zeros((1, 6), int) if k == 0 else k * tau_unit
+            polys = v0 + (tau * length / p)[..., None] * self.lp.u
+            order = np.argsort(self.lengths(polys), kind="stable")
+            tau, polys = tau[order], polys[order]
+            for pos in _free_candidates(len(polys), self.colliding(k, tau, polys)):
+                step = self.step4(polys[pos])
+                seq, n_seq = step.run(sequence_order(np.sign(tau[pos])))
+                tried += n_seq
+                if seq is None:
+                    steps_back += 1
+                    continue
+                # counts as in the paper: every polyline of each level entered is checked; one
+                # min-distance computation per 12-vertex polyline (42 pairs) examined in order
+                stats = {"k": k, "collision_checks": checks + len(polys),
+                         "steps_back": steps_back, "min_distance_computations": tried,
+                         "offset_rank": min(n_seq - 1, 2),
+                         "collision_checks_sequential": checks + pos + 1}
+                return self.result(step, seq, tau[pos], polys[pos], stats)
+            checks += len(polys)
+        raise RealizationError(self.cap_message.format(
+            max_k=max_k, p=p, d=d, rho=rho, checks=checks, steps_back=steps_back), "cap-reached")
 
 
 def realize(
@@ -170,51 +267,5 @@ def realize(
     units from the axis foot point). Raises :class:`RealizationError` (``bad-parameters``,
     ``singular-loop``, ``cap-reached`` when ``k`` would exceed ``max_k``).
     """
-    if fixed is not None and len(fixed) >= 6:
-        raise RealizationError("at most five vertices can be fixed (the search shifts the "
-                               f"free ones), got {len(fixed)}", "bad-parameters")
-    jf = np.asarray(joint_factors, dtype=np.float64)
-    _, v0 = shortest_polyline(jf, fixed)
-    length = float(polyline_length(v0))
-    if not length > 1e-12 * (1.0 + np.abs(v0).max()):
-        raise RealizationError("the shortest polyline has zero length (all axes meet in one "
-                               "point): the loop is spherical, not realizable by bars",
-                               "singular-loop")
-    d = d_fraction * length if d is None else d
-    rho = rho_fraction * d if rho is None else rho
-    check_params(p, rho, d, max_k)
-    lp = LoopMotions(jf)
-    free = np.array([i not in (fixed or {}) for i in range(6)])
-    patterns = DIGITS[np.all(DIGITS[:, ~free] == 0, axis=1)][1:]  # 3^(6-f) - 1, index order
-    tau_unit = np.where(patterns == 2, -1, patterns)
-    checks = steps_back = tried = 0
-    for k in range(max_k + 1):
-        tau = np.zeros((1, 6), int) if k == 0 else k * tau_unit
-        polys = v0 + (tau * length / p)[..., None] * lp.u
-        order = np.argsort(polyline_length(polys), kind="stable")
-        tau, polys = tau[order], polys[order]
-        for pos in _free_candidates(lp, polys):
-            search = OffsetSearch(lp, polys[pos], d, rho)
-            seq, n_seq = search.run(sequence_order(np.sign(tau[pos])))
-            tried += n_seq
-            if seq is None:
-                steps_back += 1
-                continue
-            dist, t = search.certificate(seq)
-            # counts as in the paper: every polyline of each level entered is checked; one
-            # min-distance computation per 12-vertex polyline (42 pairs) examined in order
-            stats = {"k": k, "collision_checks": checks + len(polys), "steps_back": steps_back,
-                     "min_distance_computations": tried, "offset_rank": min(n_seq - 1, 2),
-                     "collision_checks_sequential": checks + pos + 1}
-            points = search.points(seq)
-            stats["length_ratio"] = float(polyline_length(points)) / length
-            return Realization(jf, points, float(rho), float(d), length, float(p), tau[pos],
-                               OFFSET_WAYS[DIGITS[seq]], v0, polys[pos], OFFSET_PAIRS, dist, t,
-                               design_space_radii(dist, rho), stats)
-        checks += len(polys)
-    raise RealizationError(
-        f"no collision-free realization with k <= {max_k} (p = {p}, d = {d:.4g}, rho = {rho:.4g}): "
-        f"{checks} thin polylines checked, {steps_back} collision-free ones failed the 2 rho "
-        "clearance; raise max_k, lower rho/d or fix fewer vertices",
-        "cap-reached",
-    )
+    return Search(joint_factors, fixed).run(p=p, rho=rho, d=d, d_fraction=d_fraction,
+                                            rho_fraction=rho_fraction, max_k=max_k)

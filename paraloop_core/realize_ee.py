@@ -5,12 +5,15 @@ The end link 3 becomes ``S_3 L + P + R E_3``: the polyhedron P (at home, base/wo
 and two bars from ``S_3`` (on ``A_2``) to the vertex L of P and from the vertex R to ``E_3``
 (on ``A_3``). L and R never move; the initial polyline is eq. 11 with the end link routed
 ``V_2 L R V_3`` (:func:`endeffector.initial_polyline`), and ``V_2``, ``V_3`` shift like the
-other vertices unless fixed (Fig. 9 fixes them too). The search of
-:func:`realize.realize` runs unchanged (same candidates, order and offset sequences) with the
-extra exact checks of :mod:`ee_certificate` (the pair rows and the result).
+other vertices unless fixed (Fig. 9 fixes them too). The search of :func:`realize.realize`
+(:class:`realize.Search`) runs unchanged (same candidates, order and offset sequences) with
+the extra exact checks of :mod:`ee_certificate` (the pair rows and the result), as the hooks
+of :class:`_EffectorSearch`.
 """
 
 from __future__ import annotations
+
+from collections.abc import Callable
 
 import numpy as np
 
@@ -40,9 +43,8 @@ from .offsetting import (
     V_AXIS,
     LoopMotions,
     OffsetSearch,
-    sequence_order,
 )
-from .realize import Realization, check_params
+from .realize import Realization, Search
 
 
 def _axes_of(pts: tuple[int, ...]) -> set[int]:
@@ -233,6 +235,71 @@ def _unique_items(rows: np.ndarray, cols: np.ndarray, keep: np.ndarray
     return items[:, 0], items[:, 1]
 
 
+class _EffectorSearch(Search):
+    """:class:`realize.Search` with the end-effector: the initial polyline routed through L
+    and R, thin checks of the segment pairs then of P, step 4 by :class:`_Step4`."""
+
+    cap_message = ("no collision-free realization with the end-effector for k <= {max_k} "
+                   "(p = {p}, d = {d:.4g}, rho = {rho:.4g}): {checks} thin polylines checked, "
+                   "{steps_back} collision-free ones failed the clearances; raise max_k, "
+                   "shrink or move P, or choose other L and R")
+
+    def __init__(self, joint_factors: np.ndarray, fixed: dict[int, float] | None,
+                 effector: EndEffector, ee_clearance: float | None):
+        super().__init__(joint_factors, fixed)
+        self.ee, self.ee_clearance = effector, ee_clearance
+        self.anchors = effector.vertices[[effector.L, effector.R]]
+
+    def initial(self) -> tuple[np.ndarray, float]:
+        v0, _ = initial_polyline(self.jf, self.anchors, self.fixed)
+        return v0, float(ee_length(v0, self.anchors))
+
+    def start(self) -> None:
+        self.clearance = self.rho if self.ee_clearance is None else self.ee_clearance
+        if not (np.isfinite(self.clearance) and self.clearance >= 0):
+            raise RealizationError(f"ee_clearance must be >= 0, got {self.clearance!r}",
+                                   "bad-parameters")
+        super().start()
+        self.mot = PairMotions(self.jf, {r[2] for r in THIN_ROWS} | {r[2] for r in STEP4_ROWS})
+
+    def lengths(self, polys: np.ndarray) -> np.ndarray:
+        return ee_length(polys, self.anchors)
+
+    def colliding(self, k: int, tau: np.ndarray, polys: np.ndarray
+                  ) -> Callable[[int, int], np.ndarray]:
+        """Segment pairs first, P (cached per level) for the survivors."""
+        digits = np.where(tau > 0, 1, np.where(tau < 0, 2, 0))
+        effector_hits = _EffectorHits(self.mot, self.ee, self.v0, k * self.length / self.p
+                                      * self.lp.u)
+
+        def chunk(start: int, stop: int) -> np.ndarray:
+            hit = _segment_hits(self.mot, self.ee, polys[start:stop])
+            todo = np.flatnonzero(~hit)
+            hit[todo[effector_hits(digits[start:stop][todo])]] = True
+            return hit
+        return chunk
+
+    def step4(self, v: np.ndarray) -> _Step4:
+        return _Step4(self.lp, self.mot, self.ee, v, self.d, self.rho, self.clearance)
+
+    def result(self, step: _Step4, seq: int, tau: np.ndarray, v: np.ndarray, stats: dict
+               ) -> EndEffectorRealization:
+        codes = step.codes(np.array([seq]))[0]
+        rows = np.arange(len(STEP4_ROWS))
+        dist, t = step.value[rows, codes], step.t[rows, codes]
+        points = step.search.points(seq)
+        base = rows < len(BASE_PAIRS)
+        stats["length_ratio"] = float(ee_length(points, self.anchors, offset=True)) / self.length
+        real = Realization(self.jf, points, float(self.rho), float(self.d), self.length,
+                           float(self.p), tau, OFFSET_WAYS[DIGITS[seq]], self.v0, v, BASE_PAIRS,
+                           dist[base], t[base], design_space_radii(dist, self.rho), stats)
+        ee = ~base
+        return EndEffectorRealization(
+            real, self.ee, tuple(r[3] for r, e in zip(STEP4_ROWS, ee, strict=True) if e),
+            np.array([r[2] for r in STEP4_ROWS])[ee], dist[ee], t[ee],
+            step.exact[rows, codes][ee], step.need[ee])
+
+
 def realize_with_effector(
     joint_factors: np.ndarray,
     effector: EndEffector,
@@ -251,73 +318,6 @@ def realize_with_effector(
     (``fixed`` may hold ``V_2``/``V_3`` as well); ``ee_clearance`` (default rho) is the least
     distance between P and any bar or pin centre line. ``l`` is the initial polyline's length
     with the end link routed ``V_2 L R V_3``. Raises :class:`RealizationError`."""
-    jf = np.asarray(joint_factors, dtype=np.float64)
-    if fixed is not None and len(fixed) >= 6:
-        raise RealizationError("at most five vertices can be fixed (the search shifts the "
-                               f"free ones), got {len(fixed)}", "bad-parameters")
-    anchors = effector.vertices[[effector.L, effector.R]]
-    v0, u = initial_polyline(jf, anchors, fixed)
-    length = float(ee_length(v0, anchors))
-    d = d_fraction * length if d is None else d
-    rho = rho_fraction * d if rho is None else rho
-    check_params(p, rho, d, max_k)
-    clearance = rho if ee_clearance is None else ee_clearance
-    if not (np.isfinite(clearance) and clearance >= 0):
-        raise RealizationError(f"ee_clearance must be >= 0, got {clearance!r}", "bad-parameters")
-    lp = LoopMotions(jf)
-    mot = PairMotions(jf, {r[2] for r in THIN_ROWS} | {r[2] for r in STEP4_ROWS})
-    free = np.array([i not in (fixed or {}) for i in range(6)])
-    patterns = DIGITS[np.all(DIGITS[:, ~free] == 0, axis=1)][1:]
-    tau_unit = np.where(patterns == 2, -1, patterns)
-    checks = steps_back = tried = 0
-    for k in range(max_k + 1):
-        tau = np.zeros((1, 6), int) if k == 0 else k * tau_unit
-        polys = v0 + (tau * length / p)[..., None] * u
-        order = np.argsort(ee_length(polys, anchors), kind="stable")
-        tau, polys = tau[order], polys[order]
-        digits = np.where(tau > 0, 1, np.where(tau < 0, 2, 0))
-        hits = _EffectorHits(mot, effector, v0, k * length / p * u)
-        for pos in _free(mot, effector, polys, digits, hits):
-            step = _Step4(lp, mot, effector, polys[pos], d, rho, clearance)
-            seq, n_seq = step.run(sequence_order(np.sign(tau[pos])))
-            tried += n_seq
-            if seq is None:
-                steps_back += 1
-                continue
-            codes = step.codes(np.array([seq]))[0]
-            rows = np.arange(len(STEP4_ROWS))
-            dist, t = step.value[rows, codes], step.t[rows, codes]
-            points = step.search.points(seq)
-            base = rows < len(BASE_PAIRS)
-            stats = {"k": k, "collision_checks": checks + len(polys), "steps_back": steps_back,
-                     "min_distance_computations": tried, "offset_rank": min(n_seq - 1, 2),
-                     "collision_checks_sequential": checks + pos + 1,
-                     "length_ratio": float(ee_length(points, anchors, offset=True)) / length}
-            real = Realization(jf, points, float(rho), float(d), length, float(p), tau[pos],
-                               OFFSET_WAYS[DIGITS[seq]], v0, polys[pos], BASE_PAIRS,
-                               dist[base], t[base], design_space_radii(dist, rho), stats)
-            ee = ~base
-            return EndEffectorRealization(
-                real, effector, tuple(r[3] for r, e in zip(STEP4_ROWS, ee, strict=True) if e),
-                np.array([r[2] for r in STEP4_ROWS])[ee], dist[ee], t[ee],
-                step.exact[rows, codes][ee], step.need[ee])
-        checks += len(polys)
-    raise RealizationError(
-        f"no collision-free realization with the end-effector for k <= {max_k} (p = {p}, "
-        f"d = {d:.4g}, rho = {rho:.4g}): {checks} thin polylines checked, {steps_back} "
-        "collision-free ones failed the clearances; raise max_k, shrink or move P, or choose "
-        "other L and R", "cap-reached")
-
-
-def _free(mot: PairMotions, ee: EndEffector, polys: np.ndarray, digits: np.ndarray,
-          effector_hits: _EffectorHits):
-    """Positions of the collision-free thin polylines ``(C, 6, 3)`` (shift digits ``(C, 6)``),
-    in order, checked in chunks: segment pairs first, P for the survivors."""
-    start, size = 0, 16
-    while start < len(polys):
-        stop = min(start + size, len(polys))
-        todo = np.flatnonzero(~_segment_hits(mot, ee, polys[start:stop]))
-        todo = todo[~effector_hits(digits[start:stop][todo])]
-        for pos in todo:
-            yield start + int(pos)
-        start, size = stop, size * 2
+    search = _EffectorSearch(joint_factors, fixed, effector, ee_clearance)
+    return search.run(p=p, rho=rho, d=d, d_fraction=d_fraction, rho_fraction=rho_fraction,
+                      max_k=max_k)
