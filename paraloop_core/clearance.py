@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass
-from functools import cache
+from functools import cache, cached_property
 
 import numpy as np
 
@@ -143,11 +143,23 @@ class PairMotions:
             members = [k for k, m in polys.items() if m.shape[0] - 1 == deg]
             self.groups[deg] = motion_data(np.stack([polys[k] for k in members]))
             self.where.update({k: (deg, n) for n, k in enumerate(members)})
-        # sampled rigid maps for cheap upper bounds (true distances at 48 times)
-        pose = {deg: poly.evaluate_pose(md.motions[:, None], SAMPLE_T)
+
+    # Sampled rigid maps for cheap upper bounds (true distances at 48 times); computed on first
+    # use only: the thin collision check never needs them.
+    @cached_property
+    def _sampled(self) -> dict[int, np.ndarray]:
+        return {deg: poly.evaluate_pose(md.motions[:, None], SAMPLE_T)
                 for deg, md in self.groups.items()}
-        self.rot = {deg: dq.rotation_matrix(q) for deg, q in pose.items()}  # (M, T, 3, 3)
-        self.trans = {deg: dq.translation_of(q) for deg, q in pose.items()}  # (M, T, 3)
+
+    @cached_property
+    def rot(self) -> dict[int, np.ndarray]:
+        """Rotation matrices ``(M, T, 3, 3)`` per degree at :data:`SAMPLE_T`."""
+        return {deg: dq.rotation_matrix(q) for deg, q in self._sampled.items()}
+
+    @cached_property
+    def trans(self) -> dict[int, np.ndarray]:
+        """Translations ``(M, T, 3)`` per degree at :data:`SAMPLE_T`."""
+        return {deg: dq.translation_of(q) for deg, q in self._sampled.items()}
 
     def data(self, keys: Iterable[tuple[int, int]]) -> list[tuple[MotionData, int]]:
         """``(data, index)`` of the motion of each link pair of ``keys``."""
