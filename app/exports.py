@@ -2,7 +2,7 @@
 
 *Export result* downloads the result JSON (:func:`export_files`); *Export all* one zip
 ``paraloop-<design>.zip`` (:func:`export_zip`) with that JSON and, when the design has a
-realization, the fabrication output of :func:`fabrication.export_design_parts` (STL per link,
+realization, the fabrication output of :func:`export.export_design_parts` (STL per link,
 ``paraloop.3mf``, ``assembly.glb``, ``report.json`` with the verification).
 """
 
@@ -16,10 +16,10 @@ from typing import Any
 
 import numpy as np
 
-from paraloop_core import fabrication, pipeline
-from paraloop_core.parts import PartSpec, design_scale
-
-from .state import FabSettings
+from app.state import FabSettings
+from paraloop_core import pipeline
+from paraloop_core.fabrication import export
+from paraloop_core.fabrication.parts import PartSpec, design_scale
 
 #: Carving orders offered by the panel: target links first to last, each carved by the later.
 ORDER_PRESETS = {"base first": (0, 1, 2, 3, 4, 5), "end first": (3, 2, 4, 1, 5, 0)}
@@ -68,8 +68,8 @@ def carve_order(fab: FabSettings) -> list[tuple[int, int]]:
 
 
 def fabrication_options(real: Any, fab: FabSettings, carved: bool) -> dict[str, Any]:
-    """Keyword options of :func:`fabrication.export_parts` (and, with ``carved``, of
-    :func:`fabrication.carve_design_spaces`) for a realization and the panel's settings."""
+    """Keyword options of :func:`export.export_parts` (and, with ``carved``, of
+    :func:`export.carve_design_spaces`) for a realization and the panel's settings."""
     opts: dict[str, Any] = {"spec": PartSpec(size_mm=fab.size_mm, clearance_mm=fab.clearance_mm,
                                              print_in_place=fab.print_in_place)}
     if carved:
@@ -86,7 +86,7 @@ def carve_spaces(real: Any, fab: FabSettings,
                  effector: Any = None) -> tuple[Any, list]:
     """Carve and mesh the realization's design spaces with the panel's settings; an
     end-effector (``Solution.end_effector``) is part of link 3."""
-    return fabrication.carve_design_spaces(real.joint_factors, real.points, real.radius,
+    return export.carve_design_spaces(real.joint_factors, real.points, real.radius,
                                            **fabrication_options(real, fab, True),
                                            effector=effector, progress=progress)
 
@@ -101,7 +101,7 @@ def export_zip(solution: pipeline.Solution, fab: FabSettings,
     real = solution.realization
     if real is not None:
         opts = fabrication_options(real, fab, fab.carved_parts)
-        parts = fabrication.export_design_parts(real.joint_factors, real.points, real.radius,
+        parts = export.export_design_parts(real.joint_factors, real.points, real.radius,
                                                 ground=fab.ground, progress=progress,
                                                 effector=solution.end_effector, **opts)
         files += parts

@@ -9,8 +9,9 @@ import numpy as np
 import viser
 import viser.uplot as uplot
 
-from paraloop_core import dq, loops, poly, singularity
-from paraloop_core.clearance import segment_distance
+from paraloop_core.algebra import dq, poly
+from paraloop_core.linkage import loops, singularity
+from paraloop_core.realization.clearance import segment_distance
 
 SAMPLES = 241
 CLEARANCE_SAMPLES = 121  # plus the exact minimizers of the 42 pairs

@@ -17,9 +17,11 @@ import numpy as np
 import trimesh
 import viser
 
-from paraloop_core import dq, loops, poly, polyline
+from paraloop_core.algebra import dq, poly
 from paraloop_core.design import Design
 from paraloop_core.errors import RealizationError
+from paraloop_core.linkage import loops
+from paraloop_core.realization import polyline
 
 #: Fig. 5 colours of the six factorizations, in hexagon order of ``factor.NORM_ORDERS``.
 FACTOR_COLORS = np.array(

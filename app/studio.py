@@ -24,18 +24,18 @@ from typing import Any
 import numpy as np
 import viser
 
+from app.exports import export_files, slug
+from app.panels.design import Panels
+from app.panels.fabrication import FabricationPanel
+from app.plots import Plots
+from app.scene import SceneView, design_scale
+from app.state import StudioState, absolute_mesh, autosave_path_for
+from app.worker import FRAME, FULL, PREVIEW, NewestWorker
 from paraloop_core import design as design_mod
-from paraloop_core import dq, pipeline, poly
+from paraloop_core import pipeline
+from paraloop_core.algebra import dq, poly
 from paraloop_core.design import Design, Pose
 from paraloop_core.errors import DesignFileError, ParaloopError, RealizationError
-
-from .exports import export_files, slug
-from .fabrication_panel import FabricationPanel
-from .panels import Panels
-from .plots import Plots
-from .scene import SceneView, design_scale
-from .state import StudioState, absolute_mesh, autosave_path_for
-from .worker import FRAME, FULL, PREVIEW, NewestWorker
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "assets" / "designs"
 CACHE_SIZE = 16

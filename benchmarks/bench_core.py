@@ -10,7 +10,9 @@ from pathlib import Path
 
 import numpy as np
 
-from paraloop_core import design, factor, pipeline, poly, table1
+from paraloop_core import design, pipeline
+from paraloop_core.algebra import factor, poly
+from paraloop_core.validation import table1
 
 
 def _timeit(fn, repeat: int) -> np.ndarray:

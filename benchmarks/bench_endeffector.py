@@ -15,13 +15,13 @@ import time
 
 import numpy as np
 
-from paraloop_core import dq
-from paraloop_core import endeffector as eem
-from paraloop_core import realize_ee as ree
+from paraloop_core.algebra import dq
 from paraloop_core.errors import RealizationError
-from paraloop_core.polyline import polyline_length, shortest_polyline
-from paraloop_core.realize import realize
-from paraloop_core.table1 import random_loops
+from paraloop_core.realization import endeffector as eem
+from paraloop_core.realization import realize_ee as ree
+from paraloop_core.realization.polyline import polyline_length, shortest_polyline
+from paraloop_core.realization.realize import realize
+from paraloop_core.validation.table1 import random_loops
 
 
 def main() -> None:

@@ -15,8 +15,9 @@ import time
 
 import numpy as np
 
-from paraloop_core import closest, evolution, fig16, metric
-from paraloop_core import evolution_stages as stages
+from paraloop_core.motion import closest, evolution, metric
+from paraloop_core.motion import evolution_stages as stages
+from paraloop_core.validation import fig16
 
 
 def timed(fn, repeat: int = 1):

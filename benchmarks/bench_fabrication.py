@@ -12,7 +12,8 @@ import time
 
 import numpy as np
 
-from paraloop_core import carve, design, fabrication, meshing, parts, pipeline, voxelspace
+from paraloop_core import design, pipeline
+from paraloop_core.fabrication import carve, export, meshing, parts, voxelspace
 
 COLORS = np.array([[150, 150, 150], [220, 60, 60], [60, 160, 70], [240, 140, 30],
                    [60, 110, 220], [170, 80, 200]], float)
@@ -85,18 +86,18 @@ def main(path: str = "assets/designs/sun-disc.json", png: str | None = None) -> 
     spec = parts.PartSpec(size_mm=500.0)
     t = time.perf_counter()
     asm = parts.build_assembly(jf, pts, rho, spec)
-    res = fabrication.export_assembly(asm, verify=False)
+    res = export.export_assembly(asm, verify=False)
     print(f"export of all cylinder parts (build + STL/3MF/GLB): {time.perf_counter() - t:.2f} s, "
           f"{sum(len(b) for _, b in res.files) / 1e6:.2f} MB")
 
     t = time.perf_counter()
-    ver = fabrication.verify_assembly(asm, samples=720)
+    ver = export.verify_assembly(asm, samples=720)
     print(f"verification at 720 samples: {time.perf_counter() - t:.2f} s, ok={ver['ok']}, "
           f"min gap {ver['min_gap_mm']:.3f} mm, continuous {ver['continuous_min_gap_mm']:.3f} mm")
 
     t = time.perf_counter()
     carved = parts.build_assembly(jf, pts, rho, spec, bodies)
-    ver = fabrication.verify_assembly(carved, samples=720)
+    ver = export.verify_assembly(carved, samples=720)
     print(f"carved parts: build + verification {time.perf_counter() - t:.2f} s, ok={ver['ok']}, "
           f"min gap {ver['min_gap_mm']:.3f} mm, continuous {ver['continuous_min_gap_mm']:.3f} mm")
 

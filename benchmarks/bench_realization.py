@@ -19,7 +19,8 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
-from paraloop_core import collision, polyline, realize, table1  # noqa: E402
+from paraloop_core.realization import collision, polyline, realize  # noqa: E402
+from paraloop_core.validation import table1  # noqa: E402
 
 
 def _best_ms(fn, repeat: int = 30) -> float:

@@ -16,8 +16,8 @@ from typing import Any
 
 import numpy as np
 
-from .errors import DesignFileError
-from .tolerance import TOL
+from paraloop_core.errors import DesignFileError
+from paraloop_core.tolerance import TOL
 
 FORMAT = "paraloop-design"
 VERSION = 1
@@ -296,7 +296,8 @@ def _end_effector(v: Any) -> EndEffectorSettings | None:
 
 def _evolution(v: Any, n_poses: int) -> dict[str, Any]:
     """Evolution settings stay JSON-native in the design; validated by building them once."""
-    from .evolution import evolution_settings  # local: the evolution stack is heavy
+    # local: the evolution stack is heavy
+    from paraloop_core.motion.evolution import evolution_settings
 
     d = dict(_obj(v, "evolution"))
     try:

@@ -8,12 +8,15 @@ and the factors of ``M`` are rotation axes in world coordinates.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from . import dq, factor, fourpose, loops, metric, singularity
-from .design import Design, check_pose_count
+from paraloop_core.algebra import dq, factor
+from paraloop_core.design import Design, check_pose_count
+from paraloop_core.linkage import loops, singularity
+from paraloop_core.motion import fourpose, metric
 
 RESULT_FORMAT = "paraloop-result"
 RESULT_VERSION = 1
@@ -59,7 +62,7 @@ def _four_pose(design: Design, poses: np.ndarray) -> tuple[np.ndarray, np.ndarra
     m = design.motion
     mu = m.mu
     if m.criterion is not None:
-        from . import selection  # only needed when a criterion picks mu
+        from paraloop_core.motion import selection  # only needed when a criterion picks mu
 
         mu, _ = selection.best_mu(fams, m.family, m.criterion, **_criterion_params(design))
     c_rel = fourpose.four_pose_motion(fams, m.family, mu)
@@ -84,7 +87,7 @@ def solve(design: Design, *, realize: bool = True) -> Solution:
     poses = design_poses(design)
     fit = None
     if design.motion.method == "fit":
-        from . import evolution  # only needed for fitted motions
+        from paraloop_core.motion import evolution  # only needed for fitted motions
 
         fit = evolution.fit_motion(poses, inertia_of(design),
                                    evolution.evolution_settings(design.evolution))
@@ -108,14 +111,14 @@ def solve(design: Design, *, realize: bool = True) -> Solution:
 def _with_realization(sol: Solution) -> Solution:
     from dataclasses import replace
 
-    from . import realize as realize_mod
+    from paraloop_core.realization import realize as realize_mod
 
     r = sol.design.realization
     params = dict(p=r.p, rho=r.rho, d=r.d, d_fraction=r.d_fraction,
                   rho_fraction=r.rho_fraction, fixed=dict(r.fixed), max_k=r.max_k)
     if sol.design.end_effector is None:
         return replace(sol, realization=realize_mod.realize(sol.loop.joint_factors, **params))
-    from . import realize_ee
+    from paraloop_core.realization import realize_ee
 
     ee = attach_end_effector(sol)
     real = realize_ee.realize_with_effector(sol.loop.joint_factors, ee, **params,
@@ -127,7 +130,7 @@ def attach_end_effector(sol: Solution) -> Any:
     """The design's end-effector polyhedron placed at the reference pose on the chosen loop."""
     from pathlib import Path
 
-    from . import endeffector as eem
+    from paraloop_core.realization import endeffector as eem
 
     s = sol.design.end_effector
     if s.mesh is not None:
@@ -174,16 +177,39 @@ def result_to_dict(sol: Solution) -> dict[str, Any]:
     }
     out["motion"]["method"] = sol.design.motion.method
     if sol.fit is not None:
-        from . import evolution
+        from paraloop_core.motion import evolution
 
         out["motion"]["fit"] = evolution.fit_result_to_dict(sol.fit)
     if sol.realization is not None:
-        from . import realize as realize_mod
+        from paraloop_core.realization import realize as realize_mod
 
         out["realization"] = {"loop": sol.design.loop,
                               **realize_mod.realization_to_dict(sol.realization)}
     if sol.end_effector is not None:
-        from . import ee_certificate
+        from paraloop_core.realization import ee_certificate
 
         out["end_effector"] = ee_certificate.ee_to_dict(sol.end_effector)
     return out
+
+
+def save_result(sol: Solution, path: str | Path) -> None:
+    """Write the result JSON of ``sol`` to ``path`` atomically (strict JSON: no NaN/Infinity)."""
+    write_json_atomic(Path(path), result_to_dict(sol))
+
+
+def write_json_atomic(path: Path, data: dict[str, Any]) -> None:
+    """Strict JSON (``ValueError`` on NaN/inf) to a temporary file beside ``path``, then a rename:
+    a failure never leaves a half-written file or the temporary behind."""
+    import json
+    import os
+    import tempfile
+
+    text = json.dumps(data, indent=1, allow_nan=False) + "\n"
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            f.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 from hypothesis import strategies as st
 
-from paraloop_core import factor, poly, table1
+from paraloop_core.algebra import factor, poly
+from paraloop_core.validation import table1
 
 E = np.eye(8)
 I_, J_, K_, EPS = E[1], E[2], E[3], E[4]

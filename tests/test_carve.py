@@ -11,8 +11,10 @@ from scipy import ndimage
 from scipy.spatial import cKDTree
 from test_parts import example_loop
 
-from paraloop_core import carve, dq, loops, meshing, motion_bound, poly, sweep, voxelspace
+from paraloop_core.algebra import dq, poly
 from paraloop_core.errors import FabricationError
+from paraloop_core.fabrication import carve, meshing, motion_bound, sweep, voxelspace
+from paraloop_core.linkage import loops
 
 RES = 40  # voxels along a design space: coarse but quick
 

@@ -6,9 +6,11 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize_scalar
 
-from paraloop_core import clearance, loops, poly, polyline
-from paraloop_core.collision import THIN_PAIRS, polyline_segments
-from paraloop_core.table1 import random_loops
+from paraloop_core.algebra import poly
+from paraloop_core.linkage import loops
+from paraloop_core.realization import clearance, polyline
+from paraloop_core.realization.collision import THIN_PAIRS, polyline_segments
+from paraloop_core.validation.table1 import random_loops
 
 K = np.eye(8)[3]
 MOVING = np.array([[2.0, -1.0, 0.0], [2.0, 1.0, 0.0]])  # TV11 moving segment under t - k
@@ -111,7 +113,7 @@ def test_real_poly_roots_with_leading_zeros():
 
 
 def test_segment_distance_degenerate_segments():
-    from paraloop_core.clearance import segment_distance
+    from paraloop_core.realization.clearance import segment_distance
 
     seg0, seg1 = np.array([0.0, 0, 0]), np.array([2.0, 0, 0])
     point = np.array([1.0, 1, 0])

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from app.cli import main
+from app.cli.main import main
 
 ASSETS = Path(__file__).resolve().parents[1] / "assets" / "designs"
 

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from paraloop_core import closest, dq, metric, poly
+from paraloop_core.algebra import dq, poly
+from paraloop_core.motion import closest, metric
 from tests.conftest import TV6_FACTORS, random_cubic
 
 

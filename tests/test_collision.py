@@ -5,10 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from paraloop_core import clearance, collision, loops, poly, polyline
+from paraloop_core.algebra import poly
 from paraloop_core.errors import RealizationError
-from paraloop_core.realize import realize
-from paraloop_core.table1 import random_loops
+from paraloop_core.linkage import loops
+from paraloop_core.realization import clearance, collision, polyline
+from paraloop_core.realization.realize import realize
+from paraloop_core.validation.table1 import random_loops
 from tests.test_clearance import MOVING, K, sampled_min
 
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 
-from paraloop_core import dq
+from paraloop_core.algebra import dq
 from tests.conftest import seeds
 
 

@@ -8,19 +8,21 @@ import numpy as np
 import pytest
 import trimesh
 
-from paraloop_core import design, dq, loops, pipeline, poly
-from paraloop_core import ee_certificate as eec
-from paraloop_core import endeffector as eem
-from paraloop_core import realize_ee as ree
-from paraloop_core.clearance import motion_data, segment_distance
-from paraloop_core.collision import check_polylines
+from paraloop_core import design, pipeline
+from paraloop_core.algebra import dq, poly
 from paraloop_core.errors import EndEffectorError, ParaloopError, RealizationError
-from paraloop_core.facecollide import (
+from paraloop_core.linkage import loops
+from paraloop_core.realization import ee_certificate as eec
+from paraloop_core.realization import endeffector as eem
+from paraloop_core.realization import realize_ee as ree
+from paraloop_core.realization.clearance import motion_data, segment_distance
+from paraloop_core.realization.collision import check_polylines
+from paraloop_core.realization.facecollide import (
     mesh_segment_collisions,
     mesh_segment_min_distance,
     segment_triangle_distance,
 )
-from paraloop_core.realize import realize
+from paraloop_core.realization.realize import realize
 
 SUN = Path(__file__).resolve().parents[1] / "assets" / "designs" / "sun-disc.json"
 
@@ -181,7 +183,7 @@ def test_fig9_with_and_without_end_effector(sun):
 
 
 def test_random_loops_certified():
-    from paraloop_core.table1 import random_loops
+    from paraloop_core.validation.table1 import random_loops
 
     jfs = random_loops(4, 3).reshape(-1, 6, 8)
     done = 0

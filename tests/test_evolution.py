@@ -7,9 +7,10 @@ import json
 import numpy as np
 import pytest
 
-from paraloop_core import closest, dq, evolution, metric, poly
-from paraloop_core import evolution_stages as stages
+from paraloop_core.algebra import dq, poly
 from paraloop_core.errors import FitError
+from paraloop_core.motion import closest, evolution, metric
+from paraloop_core.motion import evolution_stages as stages
 from tests.conftest import random_rotation_factors
 
 SPHERE = metric.sphere(1.0)
@@ -199,7 +200,7 @@ def test_result_dict_and_parallel_workers_match():
 
 
 def test_validate_evolution_cli_writes_png_csv(tmp_path, capsys):
-    from app.cli import main
+    from app.cli.main import main
 
     rc = main(["validate", "evolution", "--starts", "3", "--targets", "6", "--workers",
                                   "1", "--max-iterations", "15", "--quiet",

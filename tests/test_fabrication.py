@@ -11,14 +11,14 @@ import pytest
 import trimesh
 from test_parts import example_assembly, example_loop
 
-from paraloop_core import fabrication, grounding, parts
 from paraloop_core.errors import FabricationError
+from paraloop_core.fabrication import export, grounding, parts
 
 
 @pytest.fixture(scope="module")
-def exported() -> fabrication.ExportResult:
+def exported() -> export.ExportResult:
     jf, pts, radius = example_loop()
-    return fabrication.export_parts(jf, pts, radius, spec=parts.PartSpec(size_mm=150.0))
+    return export.export_parts(jf, pts, radius, spec=parts.PartSpec(size_mm=150.0))
 
 
 def test_export_files_and_watertight_parts(exported):
@@ -51,7 +51,7 @@ def test_verification_finds_collisions():
     """Fat bars (far beyond the realized radius) must be reported as colliding."""
     jf, pts, radius = example_loop()
     asm = parts.build_assembly(jf, pts, radius, parts.PartSpec(rho_mm=25.0, boss_radius_mm=26.0))
-    ver = fabrication.verify_assembly(asm, samples=24)
+    ver = export.verify_assembly(asm, samples=24)
     assert not ver["ok"]
     assert ver["collisions"] > 0 and ver["min_gap_mm"] == 0.0
     worst = max(ver["pairs"], key=lambda p: p["max_intersection_mm3"])
@@ -60,7 +60,7 @@ def test_verification_finds_collisions():
 
 def test_verification_refines_fast_cells():
     """Few samples: cells whose motion bound exceeds the gap are subdivided until certified."""
-    ver = fabrication.verify_assembly(example_assembly(False), samples=16)
+    ver = export.verify_assembly(example_assembly(False), samples=16)
     assert ver["ok"]
     assert ver["max_pair_samples"] > 16
 
@@ -68,7 +68,7 @@ def test_verification_refines_fast_cells():
 def test_export_design_parts_and_progress():
     jf, pts, radius = example_loop()
     seen = []
-    files = fabrication.export_design_parts(jf, pts, radius, ground=False, samples=64,
+    files = export.export_design_parts(jf, pts, radius, ground=False, samples=64,
                                             progress=lambda f, m: seen.append(f))
     assert [n for n, _ in files][-1] == "report.json"
     assert all(isinstance(b, bytes) and b for _, b in files)
@@ -90,7 +90,7 @@ def test_grounding_column():
 
 
 def test_cli_export(tmp_path):
-    from app import export_cmd
+    from app.cli import export as export_cmd
 
     parser = argparse.ArgumentParser()
     export_cmd.register(parser.add_subparsers())
@@ -106,14 +106,14 @@ def test_cli_export(tmp_path):
 
 
 def test_print_in_place_parts_verify():
-    ver = fabrication.verify_assembly(example_assembly(True), samples=90)
+    ver = export.verify_assembly(example_assembly(True), samples=90)
     assert ver["ok"] and ver["printable"]
     assert ver["joint_clearance_mm"] == pytest.approx(0.3, abs=0.02)
 
 
 def test_carved_parts_export_and_verify():
     jf, pts, radius = example_loop()
-    res = fabrication.export_parts(jf, pts, radius, space_radius=3 * radius, resolution=56,
+    res = export.export_parts(jf, pts, radius, space_radius=3 * radius, resolution=56,
                                    samples=32, ground=False)
     ver = res.report["verification"]
     assert ver["ok"] and ver["watertight"]

@@ -11,10 +11,13 @@ import pytest
 import trimesh
 from scipy.spatial import cKDTree
 
-from paraloop_core import design, dq, endlink, fabrication, grounding, loops, parts, pipeline, poly
-from paraloop_core.endeffector import EndEffector
+from paraloop_core import design, pipeline
+from paraloop_core.algebra import dq, poly
 from paraloop_core.errors import FabricationError
-from paraloop_core.facecollide import inside_closed
+from paraloop_core.fabrication import endlink, export, grounding, parts
+from paraloop_core.linkage import loops
+from paraloop_core.realization.endeffector import EndEffector
+from paraloop_core.realization.facecollide import inside_closed
 
 SHADING = Path(__file__).resolve().parents[1] / "assets" / "designs" / "shading-panel.json"
 SPEC = parts.PartSpec(size_mm=500.0)
@@ -26,9 +29,9 @@ def sol() -> pipeline.Solution:
 
 
 @pytest.fixture(scope="module")
-def exported(sol) -> fabrication.ExportResult:
+def exported(sol) -> export.ExportResult:
     r = sol.realization
-    return fabrication.export_parts(r.joint_factors, r.points, r.radius, spec=SPEC,
+    return export.export_parts(r.joint_factors, r.points, r.radius, spec=SPEC,
                                     ground=False, effector=sol.end_effector)
 
 
@@ -90,7 +93,7 @@ def test_link3_capsules_cover_the_end_effector(sol):
                                end_link=(el.bars, endlink.solid_manifold(el, scale)))
     part = asm.parts[3]
     x = _surface_p(sol.end_effector.effector, 500) * scale
-    d = fabrication.segment_distance(part.capsules[None, :, 0], part.capsules[None, :, 1],
+    d = export.segment_distance(part.capsules[None, :, 0], part.capsules[None, :, 1],
                                      x[:, None], x[:, None]) - part.radii[None]
     assert np.all(d.min(axis=1) <= 1e-6)
     assert len(part.capsules) > 2  # the two bars, P's chain and the hardware
@@ -111,7 +114,7 @@ def test_carved_spaces_avoid_the_end_effector(sol, moved):
     r = sol.realization
     ee = _moved_effector(sol, 5, 0.6) if moved else sol.end_effector.effector
     radius = float(np.median(r.design_space_radii))
-    cv, bodies = fabrication.carve_design_spaces(r.joint_factors, r.points, r.radius, radius,
+    cv, bodies = export.carve_design_spaces(r.joint_factors, r.points, r.radius, radius,
                                                  spec=SPEC, resolution=64, effector=ee)
     fixed = [o for o in cv.report["operations"] if o["kind"] == "fixed"]
     assert sorted(o["target"] for o in fixed) == [0, 1, 2, 4, 5]
@@ -173,7 +176,7 @@ def test_grounding_uses_the_end_link_capsules():
 
 def test_carved_parts_with_end_effector_verify(sol):
     r = sol.realization
-    res = fabrication.export_parts(r.joint_factors, r.points, r.radius, spec=SPEC,
+    res = export.export_parts(r.joint_factors, r.points, r.radius, spec=SPEC,
                                    ground=False, effector=sol.end_effector, samples=90,
                                    space_radius=float(np.median(r.design_space_radii)),
                                    resolution=64)
@@ -185,7 +188,7 @@ def test_carved_parts_with_end_effector_verify(sol):
 
 def test_closed_end_effector_is_oriented():
     """A closed P with a face turned the wrong way, or inside out, still prints as itself."""
-    from paraloop_core import endeffector as eem
+    from paraloop_core.realization import endeffector as eem
 
     p = eem.builtin("panel", 1.0)  # 2 x 1 x 0.05
     flipped = p.faces.copy()
@@ -198,7 +201,7 @@ def test_closed_end_effector_is_oriented():
 
 
 def test_cli_export_of_the_end_effector_design(tmp_path):
-    from app.cli import main
+    from app.cli.main import main
 
     out = tmp_path / "parts"
     code = main(["export", "assets/designs/shading-panel.json", "--out", str(out),

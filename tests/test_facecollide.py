@@ -6,11 +6,12 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize_scalar
 
-from paraloop_core import facecollide as fc
-from paraloop_core import loops, poly
-from paraloop_core.clearance import motion_data, moving_segments
-from paraloop_core.endeffector import panel, unique_edges
-from paraloop_core.table1 import random_loops
+from paraloop_core.algebra import poly
+from paraloop_core.linkage import loops
+from paraloop_core.realization import facecollide as fc
+from paraloop_core.realization.clearance import motion_data, moving_segments
+from paraloop_core.realization.endeffector import panel, unique_edges
+from paraloop_core.validation.table1 import random_loops
 
 U = np.linspace(0.0, 1.0, 3001, endpoint=False)
 

@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 
-from paraloop_core import factor, loops, poly
+from paraloop_core.algebra import factor, poly
 from paraloop_core.errors import NonGenericMotionError
+from paraloop_core.linkage import loops
 from tests.conftest import TV6_FACTORS, E, random_cubic, random_rotation_factors, seeds
 
 

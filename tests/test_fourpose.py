@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 
-from paraloop_core import dq, fourpose, poly
+from paraloop_core.algebra import dq, poly
 from paraloop_core.errors import InterpolationError
+from paraloop_core.motion import fourpose
 from tests.conftest import random_cubic, seeds
 
 #: TV8: p_0 = 1 and C(1), C(2), C(-1) of TV6 (unnormalized).

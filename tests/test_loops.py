@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 
-from paraloop_core import dq, factor, loops, poly
+from paraloop_core.algebra import dq, factor, poly
+from paraloop_core.linkage import loops
 from tests.conftest import random_cubic, seeds
 
 

@@ -7,7 +7,8 @@ import pytest
 import trimesh
 from hypothesis import given, settings
 
-from paraloop_core import dq, metric
+from paraloop_core.algebra import dq
+from paraloop_core.motion import metric
 from tests.conftest import random_cubic, seeds
 
 ID = dq.IDENTITY

@@ -9,8 +9,11 @@ import pytest
 import trimesh
 from conftest import random_rotation_factors
 
-from paraloop_core import dq, factor, loops, parts, poly, realize
+from paraloop_core.algebra import dq, factor, poly
 from paraloop_core.errors import FabricationError
+from paraloop_core.fabrication import parts
+from paraloop_core.linkage import loops
+from paraloop_core.realization import realize
 
 
 @functools.lru_cache(maxsize=1)

@@ -8,7 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from paraloop_core import design, dq, loops, pipeline, poly
+from paraloop_core import design, pipeline
+from paraloop_core.algebra import dq, poly
+from paraloop_core.linkage import loops
 
 ASSETS = Path(__file__).resolve().parents[1] / "assets" / "designs"
 
@@ -87,7 +89,7 @@ def test_world_frame_is_respected():
 def test_criteria_choose_mu_through_the_design(criterion):
     from dataclasses import replace
 
-    from paraloop_core import fourpose, selection
+    from paraloop_core.motion import fourpose, selection
 
     d = design.load_design(ASSETS / "tv8.json")
     extra = (design.Pose(np.array([0.2, -1.0, -0.3]), np.array([0.8, 0.4, -0.4, 0.1])),)
@@ -113,7 +115,7 @@ def test_fit_design_reports_targets_and_hits_the_reference():
     s0 = pipeline.design_poses(d)[0]
     assert np.allclose(dq.normalize(poly.evaluate_pose(c, np.inf)), dq.normalize(s0))
     # the noisy targets are approximated: each reported distance is the metric distance
-    from paraloop_core import metric
+    from paraloop_core.motion import metric
 
     inertia = pipeline.inertia_of(d)
     for target, entry in zip(pipeline.design_poses(d), fit["targets"], strict=True):

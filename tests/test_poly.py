@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 
-from paraloop_core import dq, poly
+from paraloop_core.algebra import dq, poly
 from tests.conftest import random_cubic, random_rotation_factors, seeds
 
 

@@ -6,9 +6,11 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize
 
-from paraloop_core import dq, loops, polyline
+from paraloop_core.algebra import dq
 from paraloop_core.errors import RealizationError
-from paraloop_core.table1 import random_loops
+from paraloop_core.linkage import loops
+from paraloop_core.realization import polyline
+from paraloop_core.validation.table1 import random_loops
 
 
 def _objective(q, u, s):

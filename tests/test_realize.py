@@ -8,9 +8,12 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize_scalar
 
-from paraloop_core import dq, loops, poly, polyline, realize, table1
-from paraloop_core.clearance import segment_distance
+from paraloop_core.algebra import dq, poly
 from paraloop_core.errors import RealizationError
+from paraloop_core.linkage import loops
+from paraloop_core.realization import polyline, realize
+from paraloop_core.realization.clearance import segment_distance
+from paraloop_core.validation import table1
 
 
 @pytest.fixture(scope="module")
@@ -74,7 +77,7 @@ def test_geometry_of_the_offset_polyline(realized):
 
 
 def test_thin_polyline_of_the_result_is_collision_free(realized):
-    from paraloop_core.collision import check_polylines
+    from paraloop_core.realization.collision import check_polylines
 
     for r in realized:
         assert not check_polylines(r.joint_factors, r.thin)
@@ -164,7 +167,7 @@ def test_spherical_loop_is_singular():
 
 
 def test_validate_realization_cli(tmp_path, capsys):
-    from app.cli import main
+    from app.cli.main import main
 
     csv_path = tmp_path / "rows.csv"
     code = main(["validate", "realization", "--motions", "2", "--seed", "3",

@@ -6,8 +6,10 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 
-from paraloop_core import dq, factor, fourpose, loops, metric, poly, selection
+from paraloop_core.algebra import dq, factor, poly
 from paraloop_core.errors import InterpolationError
+from paraloop_core.linkage import loops
+from paraloop_core.motion import fourpose, metric, selection
 from tests.conftest import seeds
 from tests.test_fourpose import world_poses_on_cubic
 

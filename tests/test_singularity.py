@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 
-from paraloop_core import dq, factor, loops, poly, singularity
+from paraloop_core.algebra import dq, factor, poly
+from paraloop_core.linkage import loops, singularity
 from tests.conftest import TV6_FACTORS, random_cubic, random_rotation_factors, seeds
 
 

@@ -11,8 +11,8 @@ import pytest
 import trimesh
 import viser
 
-from app import effector_panel
 from app import studio as studio_mod
+from app.panels import effector as effector_panel
 from app.state import absolute_mesh
 from paraloop_core import design as design_mod
 from tests.test_studio_server import click, settle, upload

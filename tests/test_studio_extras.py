@@ -10,7 +10,8 @@ import viser
 
 from app import studio as studio_mod
 from paraloop_core import design as design_mod
-from paraloop_core import dq, loops, poly
+from paraloop_core.algebra import dq, poly
+from paraloop_core.linkage import loops
 from tests.test_studio_server import settle
 
 ASSETS = Path(__file__).resolve().parent.parent / "assets" / "designs"

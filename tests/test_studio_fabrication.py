@@ -16,10 +16,11 @@ from test_studio_server import click, gizmo, settle
 
 from app import studio as studio_mod
 from app.exports import carve_order, parse_order
-from app.fabrication_panel import check_setting
+from app.panels.fabrication import check_setting
 from app.state import FabSettings
 from paraloop_core import design as design_mod
-from paraloop_core import dq, loops, poly
+from paraloop_core.algebra import dq, poly
+from paraloop_core.linkage import loops
 
 DESIGNS = Path(__file__).resolve().parent.parent / "assets" / "designs"
 PART_FILES = {f"link_{i}.stl" for i in range(6)} | {"paraloop.3mf", "assembly.glb",

@@ -16,11 +16,12 @@ import viser
 from viser._gui_handles import GuiEvent, UploadedFile
 
 from app import studio as studio_mod
-from app.panels import loop_label
+from app.panels.design import loop_label
 from app.scene import FACTOR_COLORS
 from app.worker import FULL, PREVIEW
 from paraloop_core import design as design_mod
-from paraloop_core import dq, loops, poly
+from paraloop_core.algebra import dq, poly
+from paraloop_core.linkage import loops
 
 DESIGN = Path(__file__).resolve().parent.parent / "assets" / "designs" / "tv8.json"
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from app import studio as studio_mod
-from app.panels import parse_fixed
+from app.panels.design import parse_fixed
 from app.state import StudioState, autosave_path_for
 from app.worker import FULL, PREVIEW, NewestWorker
 from paraloop_core import design as design_mod

@@ -1,0 +1,47 @@
+"""What the studio's panels may ask of the studio: a narrow interface below both.
+
+Panels hold a :class:`StudioHost` (the :class:`app.studio.Studio` satisfies it) and never import
+the studio module, so ``app.panels`` sits strictly below ``app.studio`` (checked by import-linter).
+"""
+
+from __future__ import annotations
+
+from typing import Any, Protocol
+
+import viser
+
+from app.scene import SceneView
+from app.state import StudioState
+from paraloop_core.design import Pose
+from paraloop_core.pipeline import Solution
+
+
+class StudioHost(Protocol):
+    """The studio as its panels see it: state, the worker, notifications and file transfers."""
+
+    server: viser.ViserServer
+    state: StudioState
+    scene: SceneView
+    solution: Solution | None  # last valid solution (on screen)
+    error: str | None  # why the current design has no solution
+
+    def request(self, level: int, sync: bool = False) -> None:
+        """Ask the worker for an update of ``level`` (``app.worker`` FRAME/PREVIEW/FULL)."""
+
+    def notify(self, title: str, body: str, error: bool = False) -> None:
+        """Show a notification in every connected browser."""
+
+    def send_file(self, client: Any, name: str, data: bytes) -> None:
+        """Send a download to one browser client."""
+
+    def new_pose(self) -> Pose:
+        """A sensible new target pose for *Add pose*."""
+
+    def download_design(self, event: Any) -> None:
+        """*Save design*: the current design file to the clicking browser."""
+
+    def download_export(self, event: Any) -> None:
+        """*Download result*: the result files to the clicking browser."""
+
+    def upload_design(self, event: Any) -> None:
+        """*Load design*: replace the design with an uploaded file."""

@@ -1,0 +1,212 @@
+"""The studio's Fabrication folder: settings, *Carve design spaces* and *Export all (zip)*.
+
+Handlers validate a setting into ``state.fab`` or queue a task (``state.add_task``); the
+worker runs the task (:meth:`FabricationPanel.run`) with a progress bar, draws the carved
+spaces inside ``server.atomic()`` and shows the continuous-motion bound and the verification
+result. Failures become notifications; the design is never changed.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import TYPE_CHECKING, Any
+
+import viser
+
+from app.exports import CUSTOM, ORDER_PRESETS, carve_spaces, export_zip, parse_order
+from app.panels.design import handler, writing_back
+from app.scene import SPACES_LAYER
+from app.state import FabSettings
+from app.worker import FRAME
+from paraloop_core.errors import FabricationError
+from paraloop_core.fabrication.parts import design_scale
+
+if TYPE_CHECKING:
+    from app.host import StudioHost
+
+BOUND_HELP = ("Voxel carving is approximate; the bound makes it safe: every sweep is sampled "
+              "so that no point of the moving space is farther than the motion margin from a "
+              "sampled position (a proven Bernstein bound on the speed of the rational "
+              "motion), and each removal reaches that margin plus the voxel balls. The carved "
+              "spaces are therefore disjoint for the **continuous** motion.")
+
+
+class Cancelled(Exception):
+    """Raised from a progress callback when the design changed under a running task."""
+
+
+def check_setting(key: str, value: Any) -> Any:
+    """The validated value of setting ``key``; raises ValueError with a readable reason."""
+    if key in ("size_mm", "clearance_mm", "space_radius_mm"):
+        value = float(value)
+        if not math.isfinite(value):
+            raise ValueError("must be a finite number")
+        if key == "size_mm" and value <= 0:
+            raise ValueError(f"the size must be > 0 mm, got {value:g}")
+        if value < 0:
+            raise ValueError(f"must be >= 0 mm, got {value:g}")
+    elif key == "resolution":
+        value = int(value)
+        if not 16 <= value <= 256:
+            raise ValueError(f"voxels per space must be 16..256, got {value}")
+    elif key == "custom_order" and value.strip():
+        parse_order(value)
+    return value
+
+
+class FabricationPanel:
+    """GUI of the Fabrication folder; ``studio`` supplies state, worker, scene and files."""
+
+    def __init__(self, server: viser.ViserServer, studio: StudioHost) -> None:
+        self.studio = studio
+        self.server = server
+        gui, fab = server.gui, studio.state.fab
+        self.report: dict | None = None  # the last export's report.json
+        self._version = -1  # design version the running task started from
+        self.carving: dict | None = None  # the last carving's report
+        self.progress_log: list[tuple[str, float]] = []
+        with gui.add_folder("Fabrication", expand_by_default=False):
+            self.inputs: dict[str, Any] = {
+                "size_mm": gui.add_number("Size (mm)", initial_value=fab.size_mm, step=10.0,
+                                          hint="longest side of the linkage in mm"),
+                "clearance_mm": gui.add_number("Clearance (mm)", initial_value=fab.clearance_mm,
+                                               step=0.05, hint="joint clearance in mm"),
+                "print_in_place": gui.add_checkbox("Print in place", fab.print_in_place),
+                "ground": gui.add_checkbox("Grounding column", fab.ground),
+                "space_radius_mm": gui.add_number(
+                    "Space radius (mm)", initial_value=fab.space_radius_mm, step=1.0,
+                    hint="design-space radius; 0 = the realization's (median), base link x2"),
+                "resolution": gui.add_slider("Voxels per space", min=16, max=256, step=8,
+                                             initial_value=fab.resolution),
+                "order": gui.add_dropdown("Carving order", (*ORDER_PRESETS, CUSTOM),
+                                          initial_value=fab.order),
+                "custom_order": gui.add_text("Custom pairs", fab.custom_order,
+                                             hint="target-source, all 15 pairs: 0-1, 0-2, ..."),
+                "carved_parts": gui.add_checkbox("Parts from carved spaces", fab.carved_parts),
+            }
+            self.carve = gui.add_button("Carve design spaces", icon=viser.Icon.CUBE)
+            self.export = gui.add_button("Export all (zip)", icon=viser.Icon.DOWNLOAD)
+            self.progress = gui.add_progress_bar(0.0, visible=False)
+            self.progress_text = gui.add_markdown("")
+            self.show = gui.add_checkbox("Show design spaces", initial_value=True)
+            self.bound = gui.add_markdown("*Design spaces: not carved yet.*")
+            self.verification = gui.add_markdown("*Verification: not exported yet.*")
+        for key, handle in self.inputs.items():
+            handle.on_update(handler(lambda _, key=key: self._set(key)))
+        self.carve.on_click(handler(lambda e: self._task("carve", e)))
+        self.export.on_click(handler(lambda e: self._task("export", e)))
+        self.show.on_update(handler(lambda _: self._show(self.show.value)))
+
+    # --- handlers (edit the state only) -----------------------------------------------------
+    def _set(self, key: str) -> None:
+        st = self.studio.state
+        try:
+            value = check_setting(key, self.inputs[key].value)
+        except ValueError as exc:
+            old = getattr(st.fab, key)
+            self.studio.notify("Fabrication setting", f"{exc}; kept {old!r}", error=True)
+            self.studio.request(FRAME, sync=True)  # writes the kept value back
+            return
+        st.fab = dataclasses.replace(st.fab, **{key: value})
+
+    def _task(self, name: str, event: Any) -> None:
+        self.studio.state.add_task(name, event.client)
+        self.studio.request(FRAME)
+
+    def _show(self, show: bool) -> None:
+        hidden = self.studio.state.hidden
+        (hidden.discard if show else hidden.add)(SPACES_LAYER)
+        self.studio.request(FRAME)
+
+    # --- worker side ------------------------------------------------------------------------
+    def sync(self, fab: FabSettings) -> None:
+        """Show ``fab`` in the widgets (no handler fires)."""
+        with writing_back():
+            for key, handle in self.inputs.items():
+                handle.value = getattr(fab, key)
+
+    def run(self, task: str, client: Any) -> None:
+        """Run a queued task on the last valid solution (worker thread)."""
+        studio = self.studio
+        title = "Carving" if task == "carve" else "Export"
+        if studio.solution is None:
+            studio.notify(f"{title} failed", studio.error or "no solution yet", error=True)
+            return
+        self.progress_log.clear()
+        self._version = studio.state.version
+        self._progress(0.0, "starting", title)
+        try:
+            if task == "carve":
+                self._carve(studio.solution)
+            else:
+                self._export(studio.solution, client)
+        except Cancelled:
+            studio.notify(f"{title} cancelled", "the design changed; press the button again")
+            self.progress_text.content = f"{title} cancelled (the design changed)."
+        except (FabricationError, ValueError) as exc:
+            studio.notify(f"{title} failed", f"{exc} (the design is unchanged)", error=True)
+            self.progress_text.content = f"{title} failed: {exc}"
+        finally:
+            self.progress.visible = False
+
+    def _progress(self, fraction: float, message: str, title: str) -> None:
+        """Show progress; a design edit since the task started cancels it."""
+        if self.studio.state.version != self._version:
+            raise Cancelled
+        self.progress_log.append((message, fraction))
+        self.progress.visible = True
+        self.progress.value = 100.0 * min(max(fraction, 0.0), 1.0)
+        self.progress_text.content = f"{title}: {message} ({100 * fraction:.0f} %)"
+
+    def _carve(self, sol: Any) -> None:
+        real, fab = sol.realization, self.studio.state.fab
+        if real is None:
+            raise FabricationError("the design has no realization (switch Realize on)",
+                                   "bad-parameters")
+        cv, bodies = carve_spaces(real, fab, lambda f, m: self._progress(f, m, "Carving"),
+                                  effector=sol.end_effector)
+        studio, st = self.studio, self.studio.state
+        with self.server.atomic():
+            studio.scene.set_spaces(real.joint_factors, bodies)
+            studio.scene.draw_frame(st.u, st.thickness)
+            studio.scene.apply_layers(st.hidden)
+        self.carving = cv.report
+        margin = cv.report["max_motion_margin"]
+        mm = margin * design_scale(real.points, fab.size_mm)
+        empty = [i for i, b in enumerate(bodies) if b is None]
+        self.bound.content = (
+            f"**Continuous-motion bound:** motion margin {margin:.3g} design units "
+            f"= {mm:.3g} mm at {fab.size_mm:g} mm. {BOUND_HELP} "
+            f"Carved in {cv.report['seconds']:.1f} s, voxels kept {cv.report['voxels']}"
+            + (f"; too thin to mesh: links {empty}." if empty else "."))
+        self.progress_text.content = f"Carving done ({len(bodies) - len(empty)} spaces)."
+        if len(empty) == len(bodies):
+            self.studio.notify("No design space to show", "every carved space is too thin to "
+                               "mesh; raise the voxels per space or the space radius",
+                               error=True)
+
+    def _export(self, sol: Any, client: Any) -> None:
+        studio = self.studio
+        if studio.error:
+            studio.notify("Exporting the last valid design", studio.error, error=True)
+        name, data, report = export_zip(sol, studio.state.fab,
+                                        lambda f, m: self._progress(f, m, "Export"))
+        studio.send_file(client, name, data)
+        self.report = report
+        if report is None:
+            studio.notify("Exported the result only", "the design has no realization, so "
+                          "there are no parts", error=True)
+            self.verification.content = "*Verification: no realization, no parts.*"
+            self.progress_text.content = f"Exported {name}."
+            return
+        v = report["verification"]
+        word = "ok ✓" if v["ok"] else "FAILED ✗"
+        self.verification.content = (
+            f"**Verification: {word}** min gap {v['min_gap_mm']:.3f} mm, certified continuous "
+            f"gap {v['continuous_min_gap_mm']:.3f} mm, joint clearance "
+            f"{v['joint_clearance_mm']:.3f} mm" + ("" if v["printable"] else
+                                                   " (some gaps under half the clearance)"))
+        self.progress_text.content = f"Exported {name}."
+        if not v["ok"]:
+            studio.notify("Verification failed", "see report.json in the zip", error=True)

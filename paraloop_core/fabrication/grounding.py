@@ -1,0 +1,146 @@
+"""Loop grounding (paper Sec. 5.2, Fig. 10): a column from the base link to the ground.
+
+The column extends one of the base link's axes (A_0 or A_5) from the base link's joint point,
+away from the neighbouring link, down to the ground plane ``z = ground_z`` (default: the lowest
+point of the swept linkage minus a margin), and stands on a round foot. It is coaxial with the
+joint it extends, so against the adjacent link's hub (a solid of revolution about the same axis
+on the far side of the pin's midpoint) it is clear for every joint angle by construction; the
+moving links' bars and the other hubs (as capsules) are checked over the cycle at ``samples``
+parameters with the continuous bound of :mod:`motion_bound`: a certified distance is
+``min over samples (distance - displacement bound)``, positive means collision-free.
+All lengths in design units, base frame, home configuration.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from paraloop_core.algebra import dq, poly
+from paraloop_core.errors import FabricationError
+from paraloop_core.fabrication.motion_bound import displacement_bounds, motion_bound
+from paraloop_core.linkage import loops
+from paraloop_core.realization.clearance import segment_distance
+
+
+@dataclass(frozen=True)
+class Grounding:
+    """Column ``top`` -> ``bottom`` (on the ground plane) of ``radius`` along axis ``axis``;
+    foot of ``foot_radius`` x ``foot_height`` on ``z = ground_z``; ``clearance``: certified
+    minimum distance to the moving links over the continuous cycle, ``sampled_clearance`` the
+    minimum at the samples (design units)."""
+
+    axis: int
+    top: np.ndarray
+    bottom: np.ndarray
+    radius: float
+    ground_z: float
+    foot_radius: float
+    foot_height: float
+    clearance: float
+    sampled_clearance: float
+
+
+def link_capsules(points: np.ndarray, bar_radius: float, hub_radius: float,
+                  hub_extent: float, end_link: Sequence[tuple] | None = None,
+                  ) -> list[list[tuple[np.ndarray, np.ndarray, float, int]]]:
+    """Skeleton capsules per link (home frame): the bar and the two hubs along the pins, each
+    hub from the pin's midpoint to ``hub_extent`` beyond the joint point; tagged with the joint
+    (-1 for the bar). ``points`` ``(12, 3)``; ``end_link``: capsules ``(p0, p1, radius)``
+    replacing link 3's bar (bars ``S_3 L``, ``R E_3`` and the end-effector P)."""
+    out: list[list[tuple[np.ndarray, np.ndarray, float, int]]] = [[] for _ in range(6)]
+    for i in range(6):
+        if i == 3 and end_link is not None:
+            out[i] += [(p0, p1, r, -1) for p0, p1, r in end_link]
+        else:
+            out[i].append((points[2 * i], points[2 * i + 1], bar_radius, -1))
+        e, s = points[2 * i + 1], points[(2 * i + 2) % 12]
+        d = s - e
+        w = d / n if (n := np.linalg.norm(d)) > 0 else np.zeros(3)
+        mid = 0.5 * (e + s)
+        out[i].append((e - hub_extent * w, mid, hub_radius, i))
+        out[(i + 1) % 6].append((mid, s + hub_extent * w, hub_radius, i))
+    return out
+
+
+def _column_gaps(jf: np.ndarray, caps: list, top: np.ndarray, bottom: np.ndarray, r: float,
+                 axis: int, u: np.ndarray) -> tuple[float, float]:
+    """(certified, sampled) distance between the column capsule and the moving links."""
+    poses = dq.to_matrix(loops.link_poses(jf, poly.param_to_t(u)))  # (T, 6, 4, 4)
+    best_c, best_s = np.inf, np.inf
+    for j in range(1, 6):
+        sel = [c for c in caps[j] if not (c[3] == axis and j in (1, 5))]
+        seg = np.array([[c[0], c[1]] for c in sel])  # (n, 2, 3)
+        rad = np.array([c[2] for c in sel])
+        moved = np.einsum("tij,nkj->tnki", poses[:, j, :3, :3], seg) + \
+            poses[:, j, None, None, :3, 3]
+        dist = segment_distance(top, bottom, moved[..., 0, :], moved[..., 1, :]) - rad - r
+        gap = dist.min(axis=1)
+        center = 0.5 * (seg.reshape(-1, 3).min(0) + seg.reshape(-1, 3).max(0))
+        reach = float(np.max(np.linalg.norm(seg.reshape(-1, 3) - center, axis=1)))
+        delta = displacement_bounds(motion_bound(jf, 0, j, center), reach, u)
+        best_c = min(best_c, float(np.min(gap - delta)))
+        best_s = min(best_s, float(gap.min()))
+    return best_c, best_s
+
+
+def ground_column(joint_factors: np.ndarray, points: np.ndarray, *, bar_radius: float,
+                  hub_radius: float, hub_extent: float, column_radius: float | None = None,
+                  axis: int | None = None, ground_z: float | None = None,
+                  margin: float | None = None, samples: int = 720,
+                  end_link: Sequence[tuple] | None = None) -> Grounding:
+    """Grounding column through A_0 or A_5 (``axis``; default: the first that works);
+    ``end_link`` as in :func:`link_capsules` (so the ground lies below the end-effector too).
+
+    Raises :class:`FabricationError` (``bad-parameters``) for bad sizes and (``grounding``)
+    when neither axis points down to the ground or every column collides with a moving link.
+    """
+    jf = np.asarray(joint_factors, float)
+    pts = np.asarray(points, float)
+    r = 0.8 * hub_radius if column_radius is None else column_radius
+    if not all(np.isfinite(v) and v > 0 for v in (bar_radius, hub_radius, r)) or \
+            hub_extent < 0 or samples < 8 or axis not in (None, 0, 5):
+        raise FabricationError("grounding needs radii > 0, hub_extent >= 0, samples >= 8 and "
+                               "axis 0 or 5", "bad-parameters")
+    foot_h = r
+    margin = foot_h + 2.0 * r if margin is None else margin
+    caps = link_capsules(pts, bar_radius, hub_radius, hub_extent, end_link)
+    u = np.arange(samples) / samples
+    if ground_z is None:
+        poses = dq.to_matrix(loops.link_poses(jf, poly.param_to_t(u)))
+        lowest = np.inf
+        for j in range(6):
+            ends = np.array([p for c in caps[j] for p in c[:2]])
+            rad = np.repeat([c[2] for c in caps[j]], 2)  # lowest point of each capsule
+            z = np.einsum("tj,nj->tn", poses[:, j, 2, :3], ends) + poses[:, j, None, 2, 3] - rad
+            # Sampled lowest point, made safe by the motion between samples.
+            step = 0.0
+            if j:
+                center = 0.5 * (ends.min(0) + ends.max(0))
+                reach = float(np.max(np.linalg.norm(ends - center, axis=1)))
+                step = float(displacement_bounds(motion_bound(jf, 0, j, center), reach, u).max())
+            lowest = min(lowest, float(z.min()) - step)
+        ground_z = lowest - margin
+    tried = []
+    for ax in ([axis] if axis is not None else [0, 5]):
+        top = pts[1] if ax == 0 else pts[0]
+        away = pts[1] - pts[2] if ax == 0 else pts[0] - pts[11]
+        if np.linalg.norm(away) < 1e-12:
+            away = loops.factor_axes(jf)[ax, :3]
+            away = -away if away[2] > 0 else away
+        away = away / np.linalg.norm(away)
+        if away[2] > -0.2 or top[2] <= ground_z:
+            tried.append(f"A_{ax} does not point down to the ground")
+            continue
+        bottom = top + (ground_z - top[2]) / away[2] * away
+        start = top + r * away  # the first r lies inside the base link's own hub
+        cert, sampled = _column_gaps(jf, caps, start, bottom, r, ax, u)
+        if cert > 0:
+            return Grounding(ax, top, bottom, r, float(ground_z), 3.0 * r, foot_h, cert,
+                             sampled)
+        tried.append(f"a column on A_{ax} comes within {sampled:.4g} of a moving link "
+                     f"(certified {cert:.4g})")
+    raise FabricationError("no collision-free grounding column: " + "; ".join(tried),
+                           "grounding")

@@ -1,0 +1,279 @@
+"""Collision-free realization of a 6R loop (paper Sec. 5.1 steps 1-4, Sec. 5.2 design spaces).
+
+Step 1 (:mod:`polyline`): shortest closed polyline ``V_0..V_5`` on the axes (home, base frame).
+Step 2/3 (:mod:`collision`): shift vertices by ``tau l / p``, ``tau in {-k, 0, +k}``; candidates of
+one k are ordered by thin-polyline length (shortest first, ties by the base-3 index of the shift
+digits ``(0, +k, -k)``, axis 0 most significant) and checked in batched chunks in that order.
+Step 4 (:mod:`offsetting`): offsets, thick bars, the 42 exact pair minima (the certificate).
+Sec. 5.2: cylindrical design spaces from the certificate.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+
+import numpy as np
+
+from paraloop_core.algebra import dq
+from paraloop_core.errors import RealizationError
+from paraloop_core.linkage import loops
+from paraloop_core.realization.collision import colliding_polylines
+from paraloop_core.realization.offsetting import (
+    DIGITS,
+    OFFSET_PAIRS,
+    OFFSET_WAYS,
+    LoopMotions,
+    OffsetSearch,
+    sequence_order,
+)
+from paraloop_core.realization.polyline import polyline_length, shortest_polyline
+
+
+@dataclass(frozen=True)
+class Realization:
+    """A collision-free realization (all coordinates: base frame, home configuration t = inf).
+
+    ``points`` ``(12, 3)``: ``S_0, E_0, ..., S_5, E_5`` (S_i on ``A_{i-1}``, E_i on ``A_i``);
+    edge e joins points e and e+1 (mod 12): bar ``S_iE_i`` of link i (e = 2i), pin ``E_iS_{i+1}``
+    on ``A_i`` (e = 2i+1). ``radius`` rho and ``separation`` d in design units; ``length`` l of
+    the initial polyline; ``shifts`` ``(6,)`` tau in ``{-k, 0, k}`` (shift = tau l / p);
+    ``offsets`` ``(6,)`` in ``{+1, -1, 0}``; ``thin_initial``/``thin`` ``(6, 3)`` the step-1 and
+    step-3 polylines; ``pairs`` ``(42, 4)`` rows (edge 1, edge 2, fixed link, moving link);
+    ``pair_distance`` ``(42,)`` exact minima over the cycle at ``pair_t`` (inf = home);
+    ``design_space_radii`` ``(6,)``; ``stats`` the search counters.
+    """
+
+    joint_factors: np.ndarray
+    points: np.ndarray
+    radius: float
+    separation: float
+    length: float
+    p: float
+    shifts: np.ndarray
+    offsets: np.ndarray
+    thin_initial: np.ndarray
+    thin: np.ndarray
+    pairs: np.ndarray
+    pair_distance: np.ndarray
+    pair_t: np.ndarray
+    design_space_radii: np.ndarray
+    stats: dict
+
+    @property
+    def min_clearance(self) -> float:
+        """Smallest centre-line distance over the checked pairs and the cycle (>= 2 radius)."""
+        return float(self.pair_distance.min())
+
+
+#: ``(42, 2)``: link of each bar of the :data:`offsetting.OFFSET_PAIRS` rows (-1 for pins).
+_PAIR_BARS = np.where(OFFSET_PAIRS[:, :2] % 2 == 0, OFFSET_PAIRS[:, :2] // 2, -1)
+
+
+def design_space_radii(dist: np.ndarray, rho: float, bars: np.ndarray = _PAIR_BARS,
+                       mesh: np.ndarray | None = None) -> np.ndarray:
+    """Largest cylinder radius ``(6,)`` about each bar that stays collision-free (Sec. 5.2)
+    from the minimum distances ``dist`` ``(N,)`` of rows whose two parts are the bars of links
+    ``bars`` ``(N, 2)`` (-1 for a pin or P; default: the rows of
+    :data:`offsetting.OFFSET_PAIRS`): two bars share their distance equally, against a pin
+    (radius rho) a bar gets ``D - rho``, against P (rows in ``mesh``) all of D."""
+    radii = np.full(6, np.inf)
+    mesh = np.zeros(len(dist), dtype=bool) if mesh is None else mesh
+    for me, other in ((0, 1), (1, 0)):
+        bar = bars[:, me]
+        cap = np.where(bars[:, other] >= 0, dist / 2.0, np.where(mesh, dist, dist - rho))
+        np.minimum.at(radii, bar[bar >= 0], cap[bar >= 0])
+    return radii
+
+
+def link_segments(r: Realization) -> np.ndarray:
+    """Bars ``(6, 2, 3)``: ``[S_i, E_i]`` of link i at home (base frame)."""
+    return r.points.reshape(6, 2, 3)
+
+
+def link_geometry(r: Realization, t: np.ndarray) -> np.ndarray:
+    """Each link's centre line at parameters ``t`` ``(T,)``: ``(T, 6, 4, 3)`` =
+    ``[mid pin A_{i-1}, S_i, E_i, mid pin A_i]`` (bar plus its two half-pins), base frame."""
+    pts = r.points
+    mid = 0.5 * (pts[1::2] + np.roll(pts[0::2], -1, axis=0))  # midpoint of pin i on A_i
+    home = np.stack([np.roll(mid, 1, axis=0), pts[0::2], pts[1::2], mid], axis=1)  # (6, 4, 3)
+    pose = loops.link_poses(r.joint_factors, t)  # (T, 6, 8)
+    return dq.transform_points(pose[:, :, None, :], home[None])
+
+
+def _edge_label(e: int) -> str:
+    i = e // 2
+    return f"S{i}E{i}" if e % 2 == 0 else f"E{i}S{(i + 1) % 6}"
+
+
+def realization_to_dict(r: Realization) -> dict:
+    """JSON-ready dict of a :class:`Realization` (``t`` is null where the minimum is at home)."""
+    pairs = [
+        {
+            "edges": [int(e1), int(e2)],
+            "labels": [_edge_label(int(e1)), _edge_label(int(e2))],
+            "links": [int(la), int(lb)],
+            "min_distance": float(dist),
+            "t": None if np.isinf(t) else float(t),
+        }
+        for (e1, e2, la, lb), dist, t in zip(r.pairs, r.pair_distance, r.pair_t, strict=True)
+    ]
+    return {
+        "points": r.points.tolist(),
+        "radius": r.radius,
+        "separation": r.separation,
+        "pairs": pairs,
+        "min_clearance": r.min_clearance,
+        "design_space_radii": r.design_space_radii.tolist(),
+        "stats": {key: (float(v) if key == "length_ratio" else int(v))
+                  for key, v in r.stats.items()},
+        "offsets": [int(o) for o in r.offsets],
+        "shifts": [int(s) for s in r.shifts],
+        "shift_step": r.length / r.p,
+        "initial_length": r.length,
+        "thin_polyline": r.thin.tolist(),
+    }
+
+
+def _free_candidates(n: int, colliding: Callable[[int, int], np.ndarray]) -> Iterator[int]:
+    """Positions of the collision-free ones of ``n`` ordered candidates, checked in growing
+    chunks: ``colliding(start, stop)`` is the collision mask of candidates ``start:stop``."""
+    start, size = 0, 16
+    while start < n:
+        stop = min(start + size, n)
+        for pos in np.flatnonzero(~colliding(start, stop)):
+            yield start + int(pos)
+        start, size = stop, size * 2
+
+
+def check_params(p: float, rho: float, d: float, max_k: int) -> None:
+    bad = []
+    if not (np.isfinite(p) and p > 0):
+        bad.append(f"p must be positive, got {p!r}")
+    if not (np.isfinite(rho) and rho > 0):
+        bad.append(f"rho must be positive, got {rho!r}")
+    if not (np.isfinite(d) and d >= 2.0 * rho):
+        bad.append(f"the separation d must be at least 2 rho = {2.0 * rho!r}, got {d!r}")
+    if not (isinstance(max_k, (int, np.integer)) and max_k >= 1):
+        bad.append(f"max_k must be an integer >= 1, got {max_k!r}")
+    if bad:
+        raise RealizationError("bad realization parameters: " + "; ".join(bad), "bad-parameters")
+
+
+class Search:
+    """The search of Sec. 5.1 for one loop, for the bars alone: :meth:`run` drives the shift
+    levels, candidate order, thin checks, step 4 and the steps back to step 3; the hooks
+    (:meth:`initial`, :meth:`start`, :meth:`lengths`, :meth:`colliding`, :meth:`step4`,
+    :meth:`result`, :attr:`cap_message`) are what :mod:`realize_ee` overrides for an
+    end-effector."""
+
+    #: ``cap-reached`` message; ``str.format`` fields max_k, p, d, rho, checks, steps_back.
+    cap_message = ("no collision-free realization with k <= {max_k} (p = {p}, d = {d:.4g}, "
+                   "rho = {rho:.4g}): {checks} thin polylines checked, {steps_back} "
+                   "collision-free ones failed the 2 rho clearance; raise max_k, lower rho/d "
+                   "or fix fewer vertices")
+
+    def __init__(self, joint_factors: np.ndarray, fixed: dict[int, float] | None):
+        if fixed is not None and len(fixed) >= 6:
+            raise RealizationError("at most five vertices can be fixed (the search shifts the "
+                                   f"free ones), got {len(fixed)}", "bad-parameters")
+        self.jf = np.asarray(joint_factors, dtype=np.float64)
+        self.fixed = fixed
+
+    def initial(self) -> tuple[np.ndarray, float]:
+        """Step 1: the initial polyline ``(6, 3)`` and its length l."""
+        _, v0 = shortest_polyline(self.jf, self.fixed)
+        length = float(polyline_length(v0))
+        if not length > 1e-12 * (1.0 + np.abs(v0).max()):
+            raise RealizationError("the shortest polyline has zero length (all axes meet in "
+                                   "one point): the loop is spherical, not realizable by bars",
+                                   "singular-loop")
+        return v0, length
+
+    def start(self) -> None:
+        """Per-loop data, once the parameters (``self.d``, ``self.rho``, ...) are checked."""
+        self.lp = LoopMotions(self.jf)
+
+    def lengths(self, polys: np.ndarray) -> np.ndarray:
+        """Lengths ``(C,)`` ordering the candidates ``(C, 6, 3)`` of a level."""
+        return polyline_length(polys)
+
+    def colliding(self, k: int, tau: np.ndarray, polys: np.ndarray
+                  ) -> Callable[[int, int], np.ndarray]:
+        """Thin check of level k's ordered candidates ``(C, 6, 3)`` (shifts ``(C, 6)``): the
+        mask of candidates ``start:stop`` (for :func:`_free_candidates`)."""
+        return lambda start, stop: colliding_polylines(self.lp.thin, polys[start:stop])
+
+    def step4(self, v: np.ndarray) -> OffsetSearch:
+        """Step 4 for the thin polyline ``v`` ``(6, 3)``: ``run(order) -> (seq, examined)``."""
+        return OffsetSearch(self.lp, v, self.d, self.rho)
+
+    def result(self, step: OffsetSearch, seq: int, tau: np.ndarray, v: np.ndarray,
+               stats: dict) -> Realization:
+        """The realization by offset sequence ``seq`` of ``step``; ``stats`` lacks the
+        ``length_ratio``."""
+        dist, t = step.certificate(seq)
+        points = step.points(seq)
+        stats["length_ratio"] = float(polyline_length(points)) / self.length
+        return Realization(self.jf, points, float(self.rho), float(self.d), self.length,
+                           float(self.p), tau, OFFSET_WAYS[DIGITS[seq]], self.v0, v,
+                           OFFSET_PAIRS, dist, t, design_space_radii(dist, self.rho), stats)
+
+    def run(self, *, p: float, rho: float | None, d: float | None, d_fraction: float,
+            rho_fraction: float, max_k: int):
+        """Parameters as :func:`realize`; the :meth:`result` of the first success."""
+        self.v0, self.length = v0, length = self.initial()
+        self.d = d = d_fraction * length if d is None else d
+        self.rho = rho = rho_fraction * d if rho is None else rho
+        self.p = p
+        check_params(p, rho, d, max_k)
+        self.start()
+        free = np.array([i not in (self.fixed or {}) for i in range(6)])
+        patterns = DIGITS[np.all(DIGITS[:, ~free] == 0, axis=1)][1:]  # 3^(6-f) - 1, index order
+        tau_unit = np.where(patterns == 2, -1, patterns)
+        checks = steps_back = tried = 0
+        for k in range(max_k + 1):
+            tau = np.zeros((1, 6), int) if k == 0 else k * tau_unit
+            polys = v0 + (tau * length / p)[..., None] * self.lp.u
+            order = np.argsort(self.lengths(polys), kind="stable")
+            tau, polys = tau[order], polys[order]
+            for pos in _free_candidates(len(polys), self.colliding(k, tau, polys)):
+                step = self.step4(polys[pos])
+                seq, n_seq = step.run(sequence_order(np.sign(tau[pos])))
+                tried += n_seq
+                if seq is None:
+                    steps_back += 1
+                    continue
+                # counts as in the paper: every polyline of each level entered is checked; one
+                # min-distance computation per 12-vertex polyline (42 pairs) examined in order
+                stats = {"k": k, "collision_checks": checks + len(polys),
+                         "steps_back": steps_back, "min_distance_computations": tried,
+                         "offset_rank": min(n_seq - 1, 2),
+                         "collision_checks_sequential": checks + pos + 1}
+                return self.result(step, seq, tau[pos], polys[pos], stats)
+            checks += len(polys)
+        raise RealizationError(self.cap_message.format(
+            max_k=max_k, p=p, d=d, rho=rho, checks=checks, steps_back=steps_back), "cap-reached")
+
+
+def realize(
+    joint_factors: np.ndarray,
+    *,
+    p: float = 10.0,
+    rho: float | None = None,
+    d: float | None = None,
+    d_fraction: float = 0.01,
+    rho_fraction: float = 0.25,
+    fixed: dict[int, float] | None = None,
+    max_k: int = 50,
+) -> Realization:
+    """Collision-free realization of the loop ``joint_factors`` ``(6, 8)`` (Sec. 5.1).
+
+    ``d`` (default ``d_fraction * l``, l = initial polyline length) separates the two vertices
+    on each axis, bars have radius ``rho`` (default ``rho_fraction * d``), shifts are
+    ``tau l / p``; ``fixed`` maps a vertex index to its held position along its axis (design
+    units from the axis foot point). Raises :class:`RealizationError` (``bad-parameters``,
+    ``singular-loop``, ``cap-reached`` when ``k`` would exceed ``max_k``).
+    """
+    return Search(joint_factors, fixed).run(p=p, rho=rho, d=d, d_fraction=d_fraction,
+                                            rho_fraction=rho_fraction, max_k=max_k)
