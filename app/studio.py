@@ -206,7 +206,12 @@ class Studio:
         key = json.dumps(data, sort_keys=True)
         if key not in self._cache:
             try:
-                self._cache[key] = (pipeline.solve(design), "")
+                # the studio keeps the user's loop: fallbacks only thin the bars
+                sol = pipeline.solve(design, other_loops=False)
+                report = sol.realization_report or {}
+                note = (f"No realization: {report.get('reason')}"
+                        if report.get("status") == "not_found" else "")
+                self._cache[key] = (sol, note)
             except RealizationError as exc:
                 self._cache[key] = (pipeline.solve(design, realize=False),
                                     f"No realization: {exc}")

@@ -9,13 +9,14 @@ moving body, the chosen loop and realization settings. Loading validates every f
 from __future__ import annotations
 
 import json
-import math
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from paraloop_core import design_checks as chk
+from paraloop_core.design_checks import MAX_LENGTH
 from paraloop_core.errors import DesignFileError
 from paraloop_core.tolerance import TOL
 
@@ -109,162 +110,146 @@ class Design:
         return (np.array([p.position for p in self.poses]), np.array([p.wxyz for p in self.poses]))
 
 
-def _num(v: Any, path: str, *, positive: bool = False, allow_none: bool = False) -> float | None:
-    if v is None and allow_none:
-        return None
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-        raise DesignFileError(path, f"must be a finite number, got {v!r}")
-    if positive and v <= 0:
-        raise DesignFileError(path, f"must be > 0, got {v!r}")
-    return float(v)
-
-
-def _vec(v: Any, n: int, path: str) -> np.ndarray:
-    if not isinstance(v, (list, tuple)) or len(v) != n:
-        raise DesignFileError(path, f"must be a list of {n} numbers, got {v!r}")
-    return np.array([_num(x, f"{path}[{i}]") for i, x in enumerate(v)])
-
-
-def _obj(v: Any, path: str) -> dict:
-    if not isinstance(v, dict):
-        raise DesignFileError(path, f"must be an object, got {type(v).__name__}")
-    return v
-
-
-def _check_keys(d: dict, allowed: set[str], path: str) -> None:
-    extra = sorted(set(d) - allowed)
-    if extra:
-        raise DesignFileError(f"{path}.{extra[0]}", "unknown field")
+def _vec(v: Any, n: int, path: str, lo: float = -MAX_LENGTH, hi: float = MAX_LENGTH) -> np.ndarray:
+    items = chk.array(v, path, n, n, "numbers")
+    return np.array([chk.number(x, f"{path}[{i}]", lo, hi) for i, x in enumerate(items)])
 
 
 def _pose(v: Any, path: str) -> Pose:
-    d = _obj(v, path)
-    _check_keys(d, {"position", "wxyz"}, path)
+    d = chk.obj(v, path)
+    chk.check_keys(d, {"position", "wxyz"}, path)
     for key in ("position", "wxyz"):
         if key not in d:
             raise DesignFileError(f"{path}.{key}", "missing")
     q = _vec(d["wxyz"], 4, f"{path}.wxyz")
     n = float(np.linalg.norm(q))
-    if n < TOL.zero:
+    if not n >= TOL.zero:
         raise DesignFileError(f"{path}.wxyz", "quaternion must be nonzero")
     return Pose(_vec(d["position"], 3, f"{path}.position"), q / n)
 
 
+def _poses(v: Any, path: str, lo: int) -> tuple[Pose, ...]:
+    items = chk.array(v, path, lo, chk.MAX_POSES, "poses")
+    return tuple(_pose(p, f"{path}[{i}]") for i, p in enumerate(items))
+
+
+def _choice(v: Any, path: str, options: tuple) -> Any:
+    if not isinstance(v, (str, type(None))) or v not in options:
+        raise DesignFileError(path, f"must be one of {', '.join(map(repr, options))}, "
+                              f"got {chk.short(v)}")
+    return v
+
+
 def _motion(v: Any) -> MotionSettings:
-    d = _obj(v, "motion")
-    _check_keys(d, {"method", "family", "mu", "criterion", "targets", "extra_poses"}, "motion")
-    method = d.get("method", "four-pose")
-    if method not in METHODS:
-        raise DesignFileError("motion.method", f"must be one of {METHODS}, got {method!r}")
-    family = d.get("family", 0)
-    if family not in (0, 1) or isinstance(family, bool):
-        raise DesignFileError("motion.family", f"must be 0 or 1, got {family!r}")
+    d = chk.obj(v, "motion")
+    chk.check_keys(d, {"method", "family", "mu", "criterion", "targets", "extra_poses"}, "motion")
+    method = _choice(d.get("method", "four-pose"), "motion.method", METHODS)
+    family = chk.integer(d.get("family", 0), "motion.family", 0, 1)
     mu = d.get("mu", "inf")
-    mu = None if mu == "inf" else _num(mu, "motion.mu")
-    crit = d.get("criterion")
-    if crit is not None and crit not in CRITERIA:
-        raise DesignFileError("motion.criterion", f"must be one of {CRITERIA} or null")
+    mu = None if mu == "inf" else chk.number(mu, "motion.mu")
+    crit = _choice(d.get("criterion"), "motion.criterion", (*CRITERIA, None))
     targets = None
     if d.get("targets") is not None:
-        rows = d["targets"]
-        if not isinstance(rows, list) or len(rows) != 2:
-            raise DesignFileError("motion.targets", "must be two points [[x, y, z], [x, y, z]]")
+        rows = chk.array(d["targets"], "motion.targets", 2, 2, "points [x, y, z]")
         targets = np.array([_vec(r, 3, f"motion.targets[{i}]") for i, r in enumerate(rows)])
-    extra = d.get("extra_poses", [])
-    if not isinstance(extra, list):
-        raise DesignFileError("motion.extra_poses", "must be a list of poses")
-    extra_poses = tuple(_pose(p, f"motion.extra_poses[{i}]") for i, p in enumerate(extra))
+    extra_poses = _poses(d.get("extra_poses", []), "motion.extra_poses", 0)
     if crit in ("base-axes", "end-axes") and targets is None:
         raise DesignFileError("motion.targets", f"criterion {crit!r} needs two target points")
     if crit == "extra-poses" and not extra_poses:
         raise DesignFileError("motion.extra_poses", "criterion 'extra-poses' needs poses")
-    return MotionSettings(method, int(family), mu, crit, targets, extra_poses)
+    return MotionSettings(method, family, mu, crit, targets, extra_poses)
 
 
 def _inertia(v: Any) -> InertiaSettings:
-    d = _obj(v, "inertia")
-    _check_keys(d, {"center", "semi_axes", "axes", "weight"}, "inertia")
+    d = chk.obj(v, "inertia")
+    chk.check_keys(d, {"center", "semi_axes", "axes", "weight"}, "inertia")
     out = InertiaSettings()
     center = _vec(d["center"], 3, "inertia.center") if "center" in d else out.center
-    semi = _vec(d["semi_axes"], 3, "inertia.semi_axes") if "semi_axes" in d else out.semi_axes
-    if np.any(semi < 0) or np.all(semi == 0):
-        raise DesignFileError("inertia.semi_axes", "must be >= 0 and not all zero")
+    semi = (_vec(d["semi_axes"], 3, "inertia.semi_axes", 0.0) if "semi_axes" in d
+            else out.semi_axes)
+    if np.all(semi == 0):
+        raise DesignFileError("inertia.semi_axes", "must not all be zero")
     axes = out.axes
     if "axes" in d:
-        rows = d["axes"]
-        if not isinstance(rows, list) or len(rows) != 3:
-            raise DesignFileError("inertia.axes", "must be 3 rows of 3 numbers")
-        axes = np.array([_vec(r, 3, f"inertia.axes[{i}]") for i, r in enumerate(rows)])
+        rows = chk.array(d["axes"], "inertia.axes", 3, 3, "rows of 3 numbers")
+        axes = np.array([_vec(r, 3, f"inertia.axes[{i}]", -2.0, 2.0) for i, r in enumerate(rows)])
         if not np.allclose(axes @ axes.T, np.eye(3), atol=TOL.orthonormal):
             raise DesignFileError("inertia.axes", "rows must be orthonormal")
-    weight = _num(d.get("weight", 1.0), "inertia.weight", positive=True)
+    weight = chk.number(d.get("weight", 1.0), "inertia.weight", *chk.WEIGHT_RANGE)
     return InertiaSettings(center, semi, axes, weight)
 
 
-def _realization(v: Any) -> RealizationSettings:
+def _relative_length(v: Any, path: str, extent: float) -> float | None:
+    """``rho`` / ``d``: > 0 and, when the poses spread, within RELATIVE_LENGTH_RANGE x extent."""
+    x = chk.positive(v, path, allow_none=True)
+    lo, hi = chk.RELATIVE_LENGTH_RANGE
+    if x is not None and extent > 0 and not lo * extent <= x <= hi * extent:
+        raise DesignFileError(path, f"must be in [{lo * extent:.3g}, {hi * extent:.3g}] "
+                              f"({lo:g} to {hi:g} times the poses' extent {extent:.3g}), "
+                              f"got {x:g}")
+    return x
+
+
+def _realization(v: Any, extent: float) -> RealizationSettings:
     if v is None:
         return RealizationSettings(enabled=False)
-    d = _obj(v, "realization")
+    d = chk.obj(v, "realization")
     keys = {"enabled", "p", "rho", "d", "d_fraction", "rho_fraction", "fixed", "max_k"}
-    _check_keys(d, keys, "realization")
-    enabled = d.get("enabled", True)
-    if not isinstance(enabled, bool):
-        raise DesignFileError("realization.enabled", "must be true or false")
-    fixed_raw = _obj(d.get("fixed", {}), "realization.fixed")
+    chk.check_keys(d, keys, "realization")
+    enabled = chk.flag(d.get("enabled", True), "realization.enabled")
+    fixed_raw = chk.obj(d.get("fixed", {}), "realization.fixed")
     fixed = {}
     for k, s in fixed_raw.items():
-        if not (isinstance(k, str) and k.isdigit() and 0 <= int(k) < 6):
-            raise DesignFileError(f"realization.fixed.{k}", "keys must be vertex indices 0..5")
-        fixed[int(k)] = _num(s, f"realization.fixed.{k}")
-    max_k = d.get("max_k", 50)
-    if isinstance(max_k, bool) or not isinstance(max_k, int) or max_k < 1:
-        raise DesignFileError("realization.max_k", f"must be an integer >= 1, got {max_k!r}")
+        if k not in ("0", "1", "2", "3", "4", "5"):
+            raise DesignFileError(f"realization.fixed.{chk.key(k)}",
+                                  "keys must be vertex indices \"0\"..\"5\"")
+        fixed[int(k)] = chk.number(s, f"realization.fixed.{k}")
     return RealizationSettings(
         enabled,
-        _num(d.get("p", 10.0), "realization.p", positive=True),
-        _num(d.get("rho"), "realization.rho", positive=True, allow_none=True),
-        _num(d.get("d"), "realization.d", positive=True, allow_none=True),
-        _num(d.get("d_fraction", 0.01), "realization.d_fraction", positive=True),
-        _num(d.get("rho_fraction", 0.25), "realization.rho_fraction", positive=True),
+        chk.number(d.get("p", 10.0), "realization.p", *chk.P_RANGE),
+        _relative_length(d.get("rho"), "realization.rho", extent),
+        _relative_length(d.get("d"), "realization.d", extent),
+        chk.number(d.get("d_fraction", 0.01), "realization.d_fraction", *chk.FRACTION_RANGE),
+        chk.number(d.get("rho_fraction", 0.25), "realization.rho_fraction",
+                   *chk.FRACTION_RANGE),
         fixed,
-        max_k,
+        chk.integer(d.get("max_k", 50), "realization.max_k", *chk.MAX_K_RANGE),
     )
 
 
 def design_from_dict(data: Any) -> Design:
     """Validate a parsed JSON design; raises DesignFileError naming the first bad field."""
-    d = _obj(data, "design")
+    d = chk.obj(data, "design")
+    chk.check_depth(d)
     allowed = {"format", "version", "name", "poses", "motion", "inertia", "loop",
                "realization", "locked", "evolution", "end_effector"}
-    _check_keys(d, allowed, "design")
+    chk.check_keys(d, allowed, "design")
     if d.get("format", FORMAT) != FORMAT:
-        raise DesignFileError("format", f"must be {FORMAT!r}")
+        raise DesignFileError("format", f"must be {FORMAT!r}, got {chk.short(d['format'])}")
     version = d.get("version", VERSION)
-    if version != VERSION:
-        raise DesignFileError("version", f"unsupported version {version!r} (this is {VERSION})")
+    if type(version) is not int or version != VERSION:
+        raise DesignFileError("version", f"must be the integer {VERSION}, got "
+                              f"{chk.short(version)}")
     name = d.get("name", "untitled")
-    if not isinstance(name, str):
-        raise DesignFileError("name", "must be a string")
-    poses_raw = d.get("poses")
-    if not isinstance(poses_raw, list) or len(poses_raw) < 4:
-        raise DesignFileError("poses", "must be a list of at least 4 poses")
-    poses = tuple(_pose(p, f"poses[{i}]") for i, p in enumerate(poses_raw))
+    if not isinstance(name, str) or len(name) > chk.MAX_NAME:
+        raise DesignFileError("name", f"must be a string of at most {chk.MAX_NAME} characters, "
+                              f"got {chk.short(name)}")
+    if "poses" not in d:
+        raise DesignFileError("poses", "missing")
+    poses = _poses(d["poses"], "poses", chk.MIN_POSES)
+    positions = np.array([p.position for p in poses])
+    extent = float(np.max(np.linalg.norm(positions - positions[0], axis=1)))
     motion = _motion(d.get("motion", {}))
-    loop = d.get("loop", 0)
-    if isinstance(loop, bool) or not isinstance(loop, int) or not 0 <= loop < 9:
-        raise DesignFileError("loop", f"must be an integer 0..8, got {loop!r}")
-    locked = d.get("locked", [])
-    if not isinstance(locked, list) or any(
-        isinstance(i, bool) or not isinstance(i, int) or not 0 <= i < len(poses) for i in locked
-    ):
-        raise DesignFileError("locked", "must be a list of pose indices")
+    loop = chk.integer(d.get("loop", 0), "loop", 0, 8)
+    locked = chk.array(d.get("locked", []), "locked", 0, len(poses), "pose indices")
+    locked = [chk.integer(i, f"locked[{j}]", 0, len(poses) - 1) for j, i in enumerate(locked)]
     return Design(
         name=name,
         poses=poses,
         motion=motion,
         inertia=_inertia(d.get("inertia", {})),
         loop=loop,
-        realization=_realization(d.get("realization", {})),
+        realization=_realization(d.get("realization", {}), extent),
         locked=tuple(sorted(set(locked))),
         evolution=_evolution(d.get("evolution", {}), len(poses)),
         end_effector=_end_effector(d.get("end_effector")),
@@ -274,36 +259,41 @@ def design_from_dict(data: Any) -> Design:
 def _end_effector(v: Any) -> EndEffectorSettings | None:
     if v is None:
         return None
-    d = _obj(v, "end_effector")
-    _check_keys(d, {"mesh", "shape", "scale", "L", "R", "clearance"}, "end_effector")
+    d = chk.obj(v, "end_effector")
+    chk.check_keys(d, {"mesh", "shape", "scale", "L", "R", "clearance"}, "end_effector")
     mesh, shape = d.get("mesh"), d.get("shape")
     if (mesh is None) == (shape is None):
         raise DesignFileError("end_effector", "give exactly one of 'mesh' (a file) or 'shape'")
-    if mesh is not None and not (isinstance(mesh, str) and mesh):
-        raise DesignFileError("end_effector.mesh", "must be a file path")
-    if shape is not None and shape not in ("disc", "panel"):
-        raise DesignFileError("end_effector.shape", f"must be 'disc' or 'panel', got {shape!r}")
+    if mesh is not None and not (isinstance(mesh, str) and 0 < len(mesh) <= chk.MAX_PATH
+                                 and "\x00" not in mesh):
+        raise DesignFileError("end_effector.mesh", f"must be a file path (1..{chk.MAX_PATH} "
+                              f"characters, no NUL), got {chk.short(mesh)}")
+    if shape is not None:
+        _choice(shape, "end_effector.shape", ("disc", "panel"))
     ends = {}
     for key in ("L", "R"):
         idx = d.get(key)
-        if idx is not None and (isinstance(idx, bool) or not isinstance(idx, int) or idx < 0):
-            raise DesignFileError(f"end_effector.{key}", "must be a vertex index or null")
-        ends[key] = idx
+        ends[key] = None if idx is None else chk.integer(idx, f"end_effector.{key}", 0,
+                                                         chk.MAX_VERTEX_INDEX)
     return EndEffectorSettings(
-        mesh, shape, _num(d.get("scale", 1.0), "end_effector.scale", positive=True),
+        mesh, shape, chk.positive(d.get("scale", 1.0), "end_effector.scale"),
         ends["L"], ends["R"],
-        _num(d.get("clearance"), "end_effector.clearance", positive=True, allow_none=True))
+        chk.positive(d.get("clearance"), "end_effector.clearance", allow_none=True))
+
 
 def _evolution(v: Any, n_poses: int) -> dict[str, Any]:
     """Evolution settings stay JSON-native in the design; validated by building them once."""
     # local: the evolution stack is heavy
     from paraloop_core.motion.evolution import evolution_settings
 
-    d = dict(_obj(v, "evolution"))
+    d = dict(chk.obj(v, "evolution"))
     try:
         settings = evolution_settings(d)
+    except DesignFileError as exc:
+        msg = str(exc)[len(exc.field) + 2:]
+        raise DesignFileError(f"evolution.{exc.field}", msg) from exc
     except (TypeError, ValueError) as exc:
-        raise DesignFileError("evolution", str(exc)) from exc
+        raise DesignFileError("evolution", chk.short(str(exc)).strip("'\"")) from exc
     if settings.four_pose_indices is not None and max(settings.four_pose_indices) >= n_poses:
         raise DesignFileError("evolution.four_pose_indices",
                               f"indices must be < the number of poses ({n_poses})")
@@ -363,21 +353,31 @@ def design_to_dict(design: Design) -> dict[str, Any]:
 
 
 def load_design(path: str | Path) -> Design:
-    """Read and validate a design file; unreadable or non-JSON files raise DesignFileError."""
-    try:
-        text = Path(path).read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise DesignFileError("file", f"cannot read {path}: {exc}") from exc
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise DesignFileError("file", f"not valid JSON (line {exc.lineno}: {exc.msg})") from exc
-    return replace(design_from_dict(data), base_dir=str(Path(path).resolve().parent))
+    """Read and validate a design file (limits in :mod:`design_checks`); a bad file raises
+    DesignFileError (field ``file`` for unreadable, oversized, non-UTF-8 or non-JSON files)."""
+    design = design_from_dict(chk.parse_json(chk.read_text(path)))
+    base = Path(path).resolve().parent
+    ee = design.end_effector
+    if ee is not None and ee.mesh is not None:
+        try:
+            special = (base / ee.mesh).exists() and not (base / ee.mesh).is_file()
+        except OSError:  # e.g. a name too long: the mesh loader reports it
+            special = False
+        if special:
+            raise DesignFileError("end_effector.mesh", f"{chk.short(ee.mesh)} is not a regular "
+                                  "file")
+    return replace(design, base_dir=str(base))
 
 
 def save_design(design: Design, path: str | Path) -> None:
-    """Write a design atomically (temporary file + rename), so a crash never truncates it."""
+    """Write a design atomically (temporary file + rename), so a crash never truncates it;
+    strict JSON (a non-finite number raises ValueError and writes nothing)."""
     path = Path(path)
+    text = json.dumps(design_to_dict(design), indent=2, allow_nan=False) + "\n"
     tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(design_to_dict(design), indent=2) + "\n", encoding="utf-8")
-    tmp.replace(path)
+    try:
+        tmp.write_text(text, encoding="utf-8")
+        tmp.replace(path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise

@@ -15,9 +15,12 @@ import numpy as np
 
 from paraloop_core.algebra import dq, factor
 from paraloop_core.design import Design, check_pose_count
+from paraloop_core.errors import RealizationError
 from paraloop_core.linkage import loops, singularity
 from paraloop_core.motion import fourpose, metric
 
+#: Seconds the realization of one design may take, fallbacks included.
+REALIZATION_TIME_LIMIT = 60.0
 RESULT_FORMAT = "paraloop-result"
 RESULT_VERSION = 1
 
@@ -39,6 +42,8 @@ class Solution:
     realization: Any = None  # realize.Realization or None
     fit: Any = None  # evolution.FitResult for method 'fit', else None
     end_effector: Any = None  # ee_certificate.EndEffectorRealization when the design has one
+    #: JSON-ready: ``status`` found | not_found, ``attempts``, ``reason``/``fallback``
+    realization_report: dict | None = None
 
     @property
     def loop(self) -> loops.Loop:
@@ -80,9 +85,14 @@ def _criterion_params(design: Design) -> dict[str, Any]:
     return {"poses": extra, "inertia": inertia_of(design)}
 
 
-def solve(design: Design, *, realize: bool = True) -> Solution:
+def solve(design: Design, *, realize: bool = True, other_loops: bool = True,
+          time_limit: float = REALIZATION_TIME_LIMIT) -> Solution:
     """Compute the solution of a design; raises ParaloopError subclasses (ValueError) with a
-    clear message for degenerate poses, non-generic motions or failed realizations."""
+    clear message for degenerate poses, non-generic motions or impossible realization
+    parameters. A realization that is not found is not an error: the solution then carries
+    ``realization_report['status'] == 'not_found'`` with the reason and the attempts (the
+    design's loop, thinner bars, then with ``other_loops`` the other loops; ``time_limit``
+    seconds in all)."""
     check_pose_count(design)
     poses = design_poses(design)
     fit = None
@@ -104,26 +114,72 @@ def solve(design: Design, *, realize: bool = True) -> Solution:
     sol = Solution(design, motion, monic, reference, pose_t, mu, facts, loop_list, s_min, s_t,
                    fit=fit)
     if realize and design.realization.enabled:
-        sol = _with_realization(sol)
+        sol = _with_realization(sol, other_loops, time_limit)
     return sol
 
 
-def _with_realization(sol: Solution) -> Solution:
+#: Fallback attempts on the chosen loop: factors of (rho, d) after the design's own values.
+_SHRINK = ((0.5, 1.0), (0.25, 0.5))
+
+
+def _attempts(sol: Solution, other_loops: bool) -> list[tuple[int, float, float]]:
+    """``(loop, rho factor, d factor)`` in the order tried: the design's loop and parameters,
+    thinner bars / closer offsets, then the other loops farthest from a singular motion."""
+    first = [(sol.design.loop, 1.0, 1.0)] + [(sol.design.loop, r, d) for r, d in _SHRINK]
+    if not other_loops:
+        return first
+    order = [int(k) for k in np.argsort(-sol.singularity, kind="stable") if k != sol.design.loop]
+    return first + [(k, 1.0, 1.0) for k in order]
+
+
+def _with_realization(sol: Solution, other_loops: bool, time_limit: float) -> Solution:
+    """The first realization of :func:`_attempts` (``status: found``; the solution's loop is
+    the realized one), or the solution with a ``not_found`` report (reason, attempts)."""
+    import time
     from dataclasses import replace
 
     from paraloop_core.realization import realize as realize_mod
 
     r = sol.design.realization
-    params = dict(p=r.p, rho=r.rho, d=r.d, d_fraction=r.d_fraction,
-                  rho_fraction=r.rho_fraction, fixed=dict(r.fixed), max_k=r.max_k)
-    if sol.design.end_effector is None:
-        return replace(sol, realization=realize_mod.realize(sol.loop.joint_factors, **params))
-    from paraloop_core.realization import realize_ee
+    deadline = time.monotonic() + time_limit
+    tried: list[dict[str, Any]] = []
+    for loop, rho_f, d_f in _attempts(sol, other_loops):
+        attempt = replace(sol, design=replace(sol.design, loop=loop))
+        params = dict(p=r.p, rho=None if r.rho is None else r.rho * rho_f,
+                      d=None if r.d is None else r.d * d_f, d_fraction=r.d_fraction * d_f,
+                      rho_fraction=r.rho_fraction * rho_f / d_f, fixed=dict(r.fixed),
+                      max_k=r.max_k, deadline=deadline)
+        try:
+            if sol.design.end_effector is None:
+                real = realize_mod.realize(attempt.loop.joint_factors, **params)
+                ee = None
+            else:
+                from paraloop_core.realization import realize_ee
 
-    ee = attach_end_effector(sol)
-    real = realize_ee.realize_with_effector(sol.loop.joint_factors, ee, **params,
-                                            ee_clearance=sol.design.end_effector.clearance)
-    return replace(sol, realization=real.realization, end_effector=real)
+                ee = realize_ee.realize_with_effector(
+                    attempt.loop.joint_factors, attach_end_effector(attempt), **params,
+                    ee_clearance=sol.design.end_effector.clearance)
+                real = ee.realization
+        except RealizationError as exc:
+            if exc.reason == "bad-parameters" and not tried:
+                raise  # the user's own parameters are impossible: say so, do not guess
+            tried.append({"loop": loop, "rho_factor": rho_f, "d_factor": d_f,
+                          "reason": exc.reason, "message": str(exc)})
+            if exc.reason == "time-limit":
+                break
+            continue
+        report = {"status": "found", "attempts": tried,
+                  "fallback": None if not tried else (
+                      f"the design's loop {sol.design.loop} with rho x1, d x1 was not "
+                      f"realized; realized loop {loop} with rho x{rho_f:g}, d x{d_f:g}")}
+        return replace(attempt, realization=real, end_effector=ee, realization_report=report)
+    last = tried[-1] if tried else {"message": "no attempt"}
+    report = {"status": "not_found", "attempts": tried,
+              "reason": f"no collision-free realization within {time_limit:g} s and "
+                        f"{len(tried)} attempts; last: {last['message']}",
+              "advice": "raise realization.max_k, lower rho/d (realization.rho_fraction, "
+                        "d_fraction), fix fewer vertices, or choose another loop or mu"}
+    return replace(sol, realization_report=report)
 
 
 def attach_end_effector(sol: Solution) -> Any:
@@ -175,6 +231,12 @@ def result_to_dict(sol: Solution) -> dict[str, Any]:
         ],
         "loop": sol.design.loop,
     }
+    a, b, length = factor.conditioning_batch(sol.monic)
+    out["conditioning"] = {
+        "a": float(a), "b": float(b), "length": float(length),
+        "meaning": "factorization and certificate work in s with t = a s + b (norm roots "
+                   "round s = i) and lengths divided by 'length'; every t here is the design's",
+    }
     out["motion"]["method"] = sol.design.motion.method
     if sol.fit is not None:
         from paraloop_core.motion import evolution
@@ -183,8 +245,10 @@ def result_to_dict(sol: Solution) -> dict[str, Any]:
     if sol.realization is not None:
         from paraloop_core.realization import realize as realize_mod
 
-        out["realization"] = {"loop": sol.design.loop,
+        out["realization"] = {**sol.realization_report, "loop": sol.design.loop,
                               **realize_mod.realization_to_dict(sol.realization)}
+    elif sol.realization_report is not None:
+        out["realization"] = {**sol.realization_report, "loop": sol.design.loop}
     if sol.end_effector is not None:
         from paraloop_core.realization import ee_certificate
 

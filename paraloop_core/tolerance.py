@@ -9,10 +9,12 @@ from dataclasses import dataclass
 class Tolerance:
     """Relative thresholds; each is applied to a quantity scaled by a stated reference size."""
 
-    #: |Im z| / (1 + |z|) below which a root of the norm polynomial counts as real.
-    root_imag: float = 1e-7
-    #: relative distance below which two norm quadratics count as equal (repeated factor).
-    #: Loose on purpose: eigenvalues of a k-fold root scatter by ~eps**(1/k) (6e-6 for k = 3).
+    #: ``cosh(d) - 1`` (d the hyperbolic distance of two norm roots in the upper half plane, a
+    #: Moebius invariant) above which float64 suspects a real root: a real double root splits by
+    #: ~sqrt(eps) and looks like 1e8..1e16 here, so suspects are confirmed in high precision.
+    real_separation: float = 1e8
+    #: ``sinh(d / 2)`` below which float64 suspects a repeated norm quadratic. Loose on purpose:
+    #: eigenvalues of a k-fold root scatter by ~eps**(1/k); suspects are confirmed likewise.
     repeated: float = 1e-4
     #: |P(r1)| / |r| below which the HSS remainder's leading coefficient counts as singular.
     singular: float = 1e-9
@@ -24,6 +26,8 @@ class Tolerance:
     orthonormal: float = 1e-6
     #: relative metric distance below which two target poses count as the same pose.
     duplicate: float = 1e-9
+    #: pitch / offset ratio of a relative pose below which it counts as a zero-pitch rotation.
+    zero_pitch: float = 1e-10
     #: absolute zero for normalized quantities (degenerate geometry).
     zero: float = 1e-12
 

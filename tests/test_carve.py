@@ -13,8 +13,9 @@ from test_parts import example_loop
 
 from paraloop_core.algebra import dq, poly
 from paraloop_core.errors import FabricationError
-from paraloop_core.fabrication import carve, meshing, motion_bound, sweep, voxelspace
+from paraloop_core.fabrication import carve, meshing, sweep, voxelspace
 from paraloop_core.linkage import loops
+from paraloop_core.realization import motion_bound
 
 RES = 40  # voxels along a design space: coarse but quick
 

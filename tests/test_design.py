@@ -109,3 +109,116 @@ def test_unreadable_files(tmp_path):
         dm.load_design(bad)
     with pytest.raises(DesignFileError, match="cannot read"):
         dm.load_design(tmp_path / "missing.json")
+
+
+# --- issue 13 items 5/6: limits at the boundary (docs/design-format.md, "Limits") -------------
+
+
+@pytest.mark.parametrize(
+    "path, value, field, words",
+    [
+        (["poses", 0, "position", 0], int("9" * 400), "poses[0].position[0]", "1e+12"),
+        (["realization", "d"], 1e300, "realization.d", "(0, 1e+12]"),
+        (["realization", "d"], 1e5, "realization.d", "times the poses' extent"),
+        (["realization", "rho"], 1e-300, "realization.rho", "extent"),
+        (["realization", "p"], 5e-324, "realization.p", "[1, 10000]"),
+        (["realization", "max_k"], 10**9, "realization.max_k", "1..1000"),
+        (["realization", "max_k"], 2.0, "realization.max_k", "integer"),
+        (["version"], 1.0, "version", "integer 1"),
+        (["version"], True, "version", "integer 1"),
+        (["loop"], 2.5, "loop", "0..8"),
+        (["evolution"], {"max_iterations": float("inf")}, "evolution.max_iterations", "1..10000"),
+        (["evolution"], {"seed": 2.5}, "evolution.seed", "integer"),
+        (["evolution"], {"workers": 2.5}, "evolution.workers", "1..256"),
+        (["evolution"], {"max_iterations": 2.5}, "evolution.max_iterations", "integer"),
+        (["evolution"], {"foo": 1}, "evolution.foo", "unknown key 'foo' at evolution"),
+        (["evolution"], {"starts": 1000, "max_iterations": 10000}, "evolution.max_iterations",
+         "budget"),
+        (["realization", "foo"], 1, "realization.foo", "unknown key 'foo' at realization"),
+        (["name"], "x" * 2000, "name", "1000"),
+        (["poses"], [TV8["poses"][0]] * 1001, "poses", "4..1000"),
+        (["inertia", "weight"], 1e9, "inertia.weight", "1e+06"),
+        (["end_effector"], {"mesh": "a\x00b"}, "end_effector.mesh", "NUL"),
+        (["realization", "fixed"], {"٣": 0.0}, "realization.fixed.\\u0663", "0"),
+    ],
+    ids=lambda v: str(v)[:20],
+)
+def test_limits_name_field_and_range(path, value, field, words):
+    with pytest.raises(DesignFileError) as info:
+        dm.design_from_dict(_mutated(path, value))
+    msg = str(info.value)
+    assert info.value.field == field and "\n" not in msg and len(msg) < 300
+    assert words in msg
+
+
+def test_deep_nesting_is_refused_not_recursion(tmp_path):
+    deep = tmp_path / "deep.json"
+    deep.write_text('{"poses": ' + "[" * 100_000 + "]" * 100_000 + "}")
+    with pytest.raises(DesignFileError, match="nested deeper than 16"):
+        dm.load_design(deep)
+    nested: list = []
+    for _ in range(5000):
+        nested = [nested]
+    with pytest.raises(DesignFileError, match="nested deeper"):
+        dm.design_from_dict({**TV8, "evolution": {"seed": nested}})
+
+
+@pytest.mark.parametrize("text, words", [
+    ('{"poses": NaN}', "NaN is not valid JSON"),
+    ('{"poses": -Infinity}', "-Infinity is not valid JSON"),
+    ('{"poses": 1' + "0" * 5000 + "}", "integer literal"),
+    ('{"name": "a", "name": "b"}', "duplicate key 'name'"),
+    (b"\xff\xfe{}", "not UTF-8"),
+])
+def test_strict_json(tmp_path, text, words):
+    f = tmp_path / "d.json"
+    f.write_bytes(text if isinstance(text, bytes) else text.encode())
+    with pytest.raises(DesignFileError, match=words):
+        dm.load_design(f)
+
+
+def test_bom_accepted_and_big_or_special_files_refused(tmp_path):
+    bom = tmp_path / "bom.json"
+    bom.write_bytes(b"\xef\xbb\xbf" + (ASSETS / "tv8.json").read_bytes())
+    assert dm.load_design(bom).name == TV8["name"]
+    big = tmp_path / "big.json"
+    big.write_bytes(b" " * (20 * 2**20))
+    with pytest.raises(DesignFileError, match="over the limit"):
+        dm.load_design(big)
+    with pytest.raises(DesignFileError, match="directory"):
+        dm.load_design(tmp_path)
+
+
+def test_fifo_is_refused_without_blocking(tmp_path):
+    import os
+
+    fifo = tmp_path / "design.json"
+    os.mkfifo(fifo)
+    with pytest.raises(DesignFileError, match="not a regular file"):
+        dm.load_design(fifo)
+
+
+def test_shipped_schema_accepts_examples_and_matches_limits():
+    import jsonschema
+    schema = json.loads((Path(dm.__file__).with_name("design.schema.json")).read_text())
+    jsonschema.Draft202012Validator.check_schema(schema)
+    for path in ASSETS.glob("*.json"):
+        jsonschema.validate(json.loads(path.read_text()), schema)
+    props = schema["properties"]
+    assert props["poses"]["maxItems"] == dm.chk.MAX_POSES
+    assert props["realization"]["anyOf"][1]["properties"]["max_k"]["maximum"] == 1000
+    assert schema["$defs"]["length"]["maximum"] == dm.chk.MAX_LENGTH
+
+
+def test_save_refuses_non_finite_and_leaves_nothing(tmp_path):
+    from dataclasses import replace
+
+    import numpy as np
+
+    d = dm.design_from_dict(TV8)
+    bad = replace(d, inertia=replace(d.inertia, weight=float("nan")))
+    out = tmp_path / "d.json"
+    with pytest.raises(ValueError):
+        dm.save_design(bad, out)
+    assert list(tmp_path.iterdir()) == []
+    assert np.isfinite(d.inertia.weight)

@@ -99,9 +99,10 @@ def test_cli_export(tmp_path):
     assert args.func(args) == 0
     assert (tmp_path / "paraloop.3mf").stat().st_size > 0
     assert json.loads((tmp_path / "report.json").read_text())["verification"]["ok"]
-    bad = parser.parse_args(["export", "assets/designs/sun-disc.json", "--out",
-                             str(tmp_path / "x"), "--clearance", "-1", "--quiet"])
-    assert bad.func(bad) == 1
+    with pytest.raises(SystemExit) as bad:  # refused by the argument parser: exit code 2
+        parser.parse_args(["export", "assets/designs/sun-disc.json", "--out",
+                           str(tmp_path / "x"), "--clearance", "-1", "--quiet"])
+    assert bad.value.code == 2
     assert not (tmp_path / "x").exists()
 
 

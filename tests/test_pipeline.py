@@ -138,7 +138,7 @@ def test_bad_evolution_settings_are_refused_by_the_loader():
     bad["evolution"] = {"colour": 1}
     with pytest.raises(DesignFileError) as info:
         design.design_from_dict(bad)
-    assert info.value.field == "evolution"
+    assert info.value.field == "evolution.colour"  # the unknown key is named
 
 
 def test_end_effector_design_is_realized_with_a_certificate():

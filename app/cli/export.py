@@ -2,8 +2,10 @@
 
 Solves the design (with its realization), builds the parts at ``--size-mm``, verifies them
 over the cycle and writes ``link_<i>.stl``, ``paraloop.3mf``, ``assembly.glb`` and
-``report.json`` into DIR. Exit status 0 when verification passes, 1 on bad input (nothing
-written) or when verification fails (files written, report says why).
+``report.json`` into DIR (all or nothing). DIR is checked before the solve: it must be (or
+become) a writable directory holding none of these files unless ``--force``. Exit status 0 when
+verification passes, 2 on refused input (nothing written), 3 when no realization was found or
+verification fails (files written, the report says why), 1 on an internal error.
 """
 
 from __future__ import annotations
@@ -12,21 +14,43 @@ import argparse
 import sys
 from pathlib import Path
 
+from app.cli import outputs
+from app.cli.outputs import EXIT_NOT_REALIZED, EXIT_OK, EXIT_REFUSED
 from paraloop_core import design as design_mod
 from paraloop_core import pipeline
-from paraloop_core.errors import ParaloopError
+from paraloop_core.errors import ParaloopError, RealizationError
 from paraloop_core.fabrication import export
 from paraloop_core.fabrication.parts import PartSpec
+
+#: the fixed names written into DIR (plus ``link_<i>.stl``)
+FIXED_NAMES = ("paraloop.3mf", "assembly.glb", "report.json")
+
+
+def check_out(out: Path, force: bool) -> None:
+    """Refuse an unusable ``--out`` before any work (OutputError)."""
+    outputs.check_dir_target(out, FIXED_NAMES, force)
+    if out.is_dir() and not force:
+        for old in sorted(out.glob("link_*.stl")):
+            raise outputs.OutputError(f"{old}: already exists (use --force to overwrite)")
 
 
 def cmd_export(args: argparse.Namespace) -> int:
     path = Path(args.design)
+    out = Path(args.out)
+    check_out(out, args.force)
     try:
-        sol = pipeline.solve(design_mod.load_design(path))
-        real = sol.realization
-        if real is None:
+        design = design_mod.load_design(path)
+        if not design.realization.enabled:
             raise ParaloopError("the design has no realization (enable it in the design file)",
                                 "bad-parameters")
+        sol = pipeline.solve(design)
+        real = sol.realization
+        if real is None:
+            status = pipeline.result_to_dict(sol).get("realization", {})
+            print(f"error: {path}: no collision-free realization found "
+                  f"({outputs.one_line(status.get('reason', 'no reason given'))})",
+                  file=sys.stderr)
+            return EXIT_NOT_REALIZED
         spec = PartSpec(size_mm=args.size_mm, clearance_mm=args.clearance,
                         print_in_place=args.print_in_place)
         result = export.export_parts(
@@ -34,13 +58,13 @@ def cmd_export(args: argparse.Namespace) -> int:
             ground_axis=args.ground_axis, space_radius=args.carve_radius,
             resolution=args.resolution, samples=args.samples, effector=sol.end_effector,
             progress=None if args.quiet else _print_progress)
+    except RealizationError as exc:
+        print(f"error: {path}: {outputs.one_line(exc)}", file=sys.stderr)
+        return EXIT_REFUSED if exc.reason == "bad-parameters" else EXIT_NOT_REALIZED
     except ValueError as exc:  # ParaloopError and any other bad-input ValueError
-        print(f"error: {path}: {exc}", file=sys.stderr)
-        return 1
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    for name, data in result.files:
-        (out / name).write_bytes(data)
+        print(f"error: {path}: {outputs.one_line(exc)}", file=sys.stderr)
+        return EXIT_REFUSED
+    outputs.write_files(out, result.files)
     ver = result.report["verification"]
     print(f"{path} -> {out}: {len(result.files)} files; min gap {ver['min_gap_mm']:.3f} mm, "
           f"continuous bound {ver['continuous_min_gap_mm']:.3f} mm, "
@@ -50,8 +74,8 @@ def cmd_export(args: argparse.Namespace) -> int:
               "clearance and may fuse when printed", file=sys.stderr)
     if not ver["ok"]:
         print(f"error: {path}: verification failed (see {out / 'report.json'})", file=sys.stderr)
-        return 1
-    return 0
+        return EXIT_NOT_REALIZED
+    return EXIT_OK
 
 
 def _print_progress(fraction: float, message: str) -> None:
@@ -63,17 +87,21 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser("export", help="export printable, verified parts of a design")
     p.add_argument("design", help="design JSON file")
     p.add_argument("--out", required=True, help="output directory")
-    p.add_argument("--size-mm", type=float, default=150.0,
+    p.add_argument("--force", action="store_true", help="overwrite existing files in --out")
+    p.add_argument("--size-mm", type=outputs.float_range(0.0, 1e5, lo_open=True), default=150.0,
                    help="longest side of the linkage in mm (default 150)")
-    p.add_argument("--clearance", type=float, default=0.3,
+    p.add_argument("--clearance", type=outputs.float_range(0.0, 100.0), default=0.3,
                    help="joint clearance in mm (default 0.3)")
     p.add_argument("--print-in-place", action="store_true", help="captured pins with heads")
     p.add_argument("--no-ground", action="store_true", help="no grounding column")
     p.add_argument("--ground-axis", type=int, choices=(0, 5), default=None,
                    help="base-link axis carrying the grounding column (default: first that works)")
-    p.add_argument("--carve-radius", type=float, default=None,
+    p.add_argument("--carve-radius", type=outputs.float_range(0.0, 1e12, lo_open=True),
+                   default=None,
                    help="carve design spaces of this radius (design units) as link bodies")
-    p.add_argument("--resolution", type=int, default=128, help="voxels along a design space")
-    p.add_argument("--samples", type=int, default=720, help="verification samples")
+    p.add_argument("--resolution", type=outputs.int_range(8, 1024), default=128,
+                   help="voxels along a design space (8..1024)")
+    p.add_argument("--samples", type=outputs.int_range(8, 100_000), default=720,
+                   help="verification samples (8..100000)")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=cmd_export)

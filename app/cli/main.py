@@ -1,54 +1,121 @@
 """The ``paraloop`` command line: ``solve``, ``validate ...``, ``export``, ``studio``.
 
-Every failure caused by the input prints one line ``error: <file>: <field>: <reason>`` on stderr
-and exits non-zero; no partial output file is ever written.
+Every failure caused by the input prints one line ``error: <file>: <field>: <reason>`` on stderr;
+output paths are checked before any work starts, nothing is overwritten without ``--force`` and
+no partial or temporary file is left behind. Exit codes (``docs/result-format.md``): 0 done,
+3 solved but not realized, 2 input refused, 1 internal error (``--debug`` shows the traceback),
+130 interrupted.
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
+import traceback
 from pathlib import Path
 
 from app import studio
 from app.cli import export as export_cmd
-from app.cli import validate_evolution, validate_realization
+from app.cli import outputs, validate_evolution, validate_realization
+from app.cli.outputs import EXIT_INTERNAL, EXIT_NOT_REALIZED, EXIT_OK, EXIT_REFUSED
 from paraloop_core import design as design_mod
 from paraloop_core import pipeline
+from paraloop_core.errors import RealizationError
 
 
-def _out_path(out: Path, design_path: Path, several: bool) -> Path:
-    if not several and out.suffix == ".json":
-        return out
-    return out / f"{design_path.stem}.result.json"
+class Parser(argparse.ArgumentParser):
+    """Usage errors on one line (``error: ...``), exit status 2."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        print(f"error: {self.prog}: {outputs.one_line(message)} (see {self.prog} --help)",
+              file=sys.stderr)
+        raise SystemExit(EXIT_REFUSED)
+
+
+def internal_error(where: str, exc: BaseException, debug: bool) -> int:
+    """One line for an unexpected exception (a bug); the traceback only with ``--debug``."""
+    print(f"error: {where}internal error ({type(exc).__name__}: {outputs.one_line(exc, 200)}); "
+          f"{outputs.REPORT} (rerun with --debug for the traceback)", file=sys.stderr)
+    if debug:
+        traceback.print_exception(exc)
+    return EXIT_INTERNAL
+
+
+def plan_solve(designs: list[Path], out: Path, force: bool) -> tuple[list[Path], bool]:
+    """Result path per design and whether ``out`` is a directory; refuses (OutputError) an
+    unusable output before any design is read."""
+    single = len(designs) == 1 and out.suffix == ".json" and not out.is_dir()
+    if single:
+        outputs.check_file_target(out, force)
+        targets = [out]
+    else:
+        targets = [out / f"{p.stem}.result.json" for p in designs]
+        outputs.check_distinct(targets, designs)
+        outputs.check_dir_target(out, [t.name for t in targets], force)
+    outputs.check_not_inputs(targets, designs)
+    return targets, not single
+
+
+def _solve_one(path: Path, target: Path, args: argparse.Namespace, out_dir: Path | None) -> int:
+    """Solve one design and write its result; returns its exit code."""
+    try:
+        design = design_mod.load_design(path)
+        result = pipeline.result_to_dict(pipeline.solve(design, realize=not args.no_realize))
+    except RealizationError as exc:
+        print(f"error: {path}: {outputs.one_line(exc)}", file=sys.stderr)
+        return EXIT_REFUSED if exc.reason == "bad-parameters" else EXIT_NOT_REALIZED
+    except ValueError as exc:  # ParaloopError: a refused file or degenerate design
+        print(f"error: {path}: {outputs.one_line(exc)}", file=sys.stderr)
+        return EXIT_REFUSED
+    real = result.get("realization", {})
+    if out_dir is not None:
+        with outputs.created_dir(out_dir):
+            pipeline.write_json_atomic(target, result)
+    else:
+        pipeline.write_json_atomic(target, result)
+    print(f"{path} -> {target}")
+    if real.get("status", "found") != "found":
+        print(f"warning: {path}: solved, but no collision-free realization was found "
+              f"({outputs.one_line(real.get('reason', 'no reason given'))})", file=sys.stderr)
+        return EXIT_NOT_REALIZED
+    return EXIT_OK
 
 
 def cmd_solve(args: argparse.Namespace) -> int:
-    """Solve each design in one process; write ``<stem>.result.json`` per good design."""
+    """Solve each design in one process; write ``<stem>.result.json`` per solved design."""
+    designs = [Path(name) for name in args.designs]
     out = Path(args.output)
-    several = len(args.designs) > 1 or out.suffix != ".json"
-    if several:
-        out.mkdir(parents=True, exist_ok=True)
-    failures = 0
-    for name in args.designs:
-        path = Path(name)
+    targets, is_dir = plan_solve(designs, out, args.force)
+    codes = []
+    for path, target in zip(designs, targets, strict=True):
         try:
-            design = design_mod.load_design(path)
-            result = pipeline.result_to_dict(pipeline.solve(design, realize=not args.no_realize))
-        except ValueError as exc:  # ParaloopError and any other bad-input ValueError
-            print(f"error: {path}: {exc}", file=sys.stderr)
-            failures += 1
-            continue
-        target = _out_path(out, path, several)
-        pipeline.write_json_atomic(target, result)
-        print(f"{path} -> {target}")
-    return 1 if failures else 0
+            codes.append(_solve_one(path, target, args, out if is_dir else None))
+        except (KeyboardInterrupt, outputs.OutputError):
+            raise
+        except OSError as exc:
+            print(f"error: {target}: cannot write ({outputs.one_line(exc)})", file=sys.stderr)
+            codes.append(EXIT_REFUSED)
+        except Exception as exc:  # a bug: report it, go on with the other designs
+            codes.append(internal_error(f"{path}: ", exc, args.debug))
+    for code in (EXIT_INTERNAL, EXIT_REFUSED, EXIT_NOT_REALIZED):
+        if code in codes:
+            return code
+    return EXIT_OK
+
+
+def _add_debug(parser: argparse.ArgumentParser, top: bool = True) -> None:
+    """``--debug`` accepted before or after the sub-command (tracebacks of internal errors)."""
+    parser.add_argument("--debug", action="store_true",
+                        default=False if top else argparse.SUPPRESS,
+                        help="print the traceback of an internal error")
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for child in action.choices.values():
+                _add_debug(child, top=False)
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog="paraloop", description="Design invertible paradoxical 6R loops."
-    )
+    parser = Parser(prog="paraloop", description="Design invertible paradoxical 6R loops.")
     sub = parser.add_subparsers(dest="command", required=True)
     solve = sub.add_parser("solve", help="solve design files and write result JSON")
     solve.add_argument("designs", nargs="+", help="design JSON files")
@@ -56,6 +123,7 @@ def build_parser() -> argparse.ArgumentParser:
                        help="output directory, or a .json file for a single design")
     solve.add_argument("--no-realize", action="store_true",
                        help="skip the collision-free realization")
+    solve.add_argument("--force", action="store_true", help="overwrite existing result files")
     solve.set_defaults(func=cmd_solve)
     validate = sub.add_parser("validate", help="statistical validations of the paper")
     validate_sub = validate.add_subparsers(dest="what", required=True)
@@ -64,6 +132,7 @@ def build_parser() -> argparse.ArgumentParser:
         module.register(sub)
     for module in _VALIDATE_MODULES:
         module.register(validate_sub)
+    _add_debug(parser)
     return parser
 
 
@@ -72,14 +141,23 @@ _VALIDATE_MODULES: list = [validate_realization, validate_evolution]
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    """Run the command line; returns the exit code (never raises, never prints a traceback
+    unless ``--debug``)."""
+    try:
+        args = build_parser().parse_args(argv)
+    except SystemExit as exc:  # --help (0) or a usage error (2, already printed)
+        return exc.code if isinstance(exc.code, int) else EXIT_REFUSED
+    debug = bool(getattr(args, "debug", False))
     try:
         return int(args.func(args) or 0)
-    except ValueError as exc:  # bad input reaching the core: one line, never a traceback
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
     except KeyboardInterrupt:
-        return 130
+        print("error: interrupted", file=sys.stderr)
+        return outputs.EXIT_INTERRUPTED
+    except (ValueError, OSError) as exc:  # bad input or unusable output: one line
+        print(f"error: {outputs.one_line(exc)}", file=sys.stderr)
+        return EXIT_REFUSED
+    except Exception as exc:
+        return internal_error("", exc, debug)
 
 
 if __name__ == "__main__":

@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
+from app.cli import outputs
 from paraloop_core.validation import fig16
 
 
@@ -27,17 +27,14 @@ def _progress_bar(start: float):
     return show
 
 
+NAMES = ("fig16.png", "fig16.csv", "fig16_summary.json")
+
+
 def cmd_evolution(args: argparse.Namespace) -> int:
-    if min(args.starts, args.targets - 4, args.workers, args.max_iterations) < 1:
-        print("error: need --starts >= 1, --targets >= 5, --workers >= 1, --max-iterations >= 1",
-              file=sys.stderr)
-        return 2
     out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    outputs.check_dir_target(out, NAMES, args.force)  # before the (long) run
     res = fig16.run(args.starts, args.targets, args.seed, args.workers, args.max_iterations,
                     None if args.quiet else _progress_bar(time.perf_counter()))
-    fig16.write_csv(res, out / "fig16.csv")
-    fig16.plot(res, out / "fig16.png")
     final = res.costs[:, -1]
     status = {s: res.status.count(s) for s in sorted(set(res.status))}
     summary = {
@@ -49,8 +46,11 @@ def cmd_evolution(args: argparse.Namespace) -> int:
         "exact_fits": int(np.sum(final <= 1e-8)), "status": status,
         "best_start": res.best, "worst_start": res.worst,
     }
-    (out / "fig16_summary.json").write_text(json.dumps(summary, indent=1) + "\n",
-                                            encoding="utf-8")
+    with outputs.staged_dir(out) as tmp:
+        fig16.write_csv(res, tmp / "fig16.csv")
+        fig16.plot(res, tmp / "fig16.png")
+        (tmp / "fig16_summary.json").write_text(json.dumps(summary, indent=1) + "\n",
+                                                encoding="utf-8")
     print(f"{args.starts} starts on {args.targets} targets (seed {args.seed}) in "
           f"{res.seconds:.1f} s with {args.workers} worker(s)")
     print(f"final cost: best {final.min():.3g}, median {np.median(final):.3g}, "
@@ -63,12 +63,14 @@ def register(validate_subparsers) -> None:
     """Add the ``evolution`` sub-command to the ``validate`` group."""
     p = validate_subparsers.add_parser(
         "evolution", help="Fig. 16: evolution from many random starts on sampled targets")
-    p.add_argument("--starts", type=int, default=500, help="number of random starts")
-    p.add_argument("--targets", type=int, default=10, help="number of target poses (>= 5)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the target motion and starts")
-    p.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1),
-                   help="worker processes")
-    p.add_argument("--max-iterations", type=int, default=100, help="iteration cap per start")
+    p.add_argument("--starts", type=outputs.int_range(1, 100_000), default=500,
+                   help="number of random starts (1..100000)")
+    p.add_argument("--targets", type=outputs.int_range(5, 1000), default=10,
+                   help="number of target poses (5..1000)")
+    outputs.add_seed_and_workers(p, "seed of the target motion and starts")
+    p.add_argument("--max-iterations", type=outputs.int_range(1, 10_000), default=100,
+                   help="iteration cap per start (1..10000)")
     p.add_argument("--out", default="out/fig16", help="output directory (PNG, CSV, JSON)")
+    p.add_argument("--force", action="store_true", help="overwrite existing output files")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_evolution)

@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import argparse
 import csv
-import os
+import io
 import sys
 import time
 from pathlib import Path
 
+from app.cli import outputs
 from paraloop_core.validation import table1
 
 
@@ -40,37 +41,36 @@ def format_table(summary: dict[str, dict]) -> str:
 
 
 def cmd_realization(args: argparse.Namespace) -> int:
-    if args.motions < 1 or args.workers < 1:
-        print("error: --motions and --workers must be positive", file=sys.stderr)
-        return 2
+    """Exit status 0 when every loop is realized, 3 otherwise (2: refused arguments)."""
+    csv_path = Path(args.csv) if args.csv else None
+    if csv_path is not None:  # checked before the (long) run
+        outputs.check_file_target(csv_path, args.force)
     start = time.perf_counter()
     rows = table1.run(args.motions, args.seed, args.workers,
                       None if args.quiet else lambda d, n: _progress(d, n, start))
     elapsed = time.perf_counter() - start
-    if args.csv:
-        path = Path(args.csv)
+    if csv_path is not None:
         fields = ["motion", "kind", "ok", "reason", *table1.COLUMNS[:5], "offset_rank",
                   "collision_checks_sequential", "min_clearance_over_rho"]
-        tmp = path.with_name(path.name + ".tmp")
-        with tmp.open("w", newline="", encoding="utf-8") as fh:
-            writer = csv.DictWriter(fh, fieldnames=fields, restval="")
-            writer.writeheader()
-            writer.writerows(rows)
-        tmp.replace(path)
+        text = io.StringIO(newline="")
+        writer = csv.DictWriter(text, fieldnames=fields, restval="")
+        writer.writeheader()
+        writer.writerows(rows)
+        outputs.write_files(csv_path.parent, [(csv_path.name, text.getvalue().encode())])
     print(format_table(table1.summarize(rows)))
     print(f"{len(rows)} loops from {args.motions} motions (seed {args.seed}) in {elapsed:.1f} s "
           f"with {args.workers} worker(s)")
-    return 0 if all(r["ok"] for r in rows) else 1
+    return outputs.EXIT_OK if all(r["ok"] for r in rows) else outputs.EXIT_NOT_REALIZED
 
 
 def register(validate_subparsers) -> None:
     """Add the ``realization`` sub-command to the ``validate`` group."""
     p = validate_subparsers.add_parser(
         "realization", help="Table 1: realize AS and DB loops of random cubic motions")
-    p.add_argument("--motions", type=int, default=1000, help="number of random cubics")
-    p.add_argument("--seed", type=int, default=0, help="random seed")
-    p.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1),
-                   help="worker processes")
+    p.add_argument("--motions", type=outputs.int_range(1, 1_000_000), default=1000,
+                   help="number of random cubics (1..1000000)")
+    outputs.add_seed_and_workers(p, "random seed")
     p.add_argument("--csv", help="write one row per loop to this CSV file")
+    p.add_argument("--force", action="store_true", help="overwrite an existing --csv file")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_realization)

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from paraloop_core.algebra import dq, poly
+from paraloop_core.algebra import dq, exact, poly
 from paraloop_core.errors import NonGenericMotionError
 from paraloop_core.tolerance import TOL
 
@@ -30,26 +30,109 @@ _MESSAGES = {
 }
 
 
+def conditioning_batch(c_monic: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Affine parameter map and length unit that make monic ``C`` ``(..., n+1, 8)`` O(1).
+
+    Returns ``(a, b, length)`` ``(...)`` each: with ``t = a s + b`` the norm roots of
+    ``C(a s + b) / a^n`` gather round ``s = i`` (``b + i a`` is an approximate minimax centre of
+    the roots in the hyperbolic metric of the upper half plane, which affine maps preserve: the
+    roots' remaining spread is intrinsic to the motion), and dividing its dual part by
+    ``length`` makes dual and primal coefficients the same size. Factorization commutes with
+    both maps (``t - h = a (s - (h - b)/a)``; scaling the dual part is an algebra automorphism),
+    so conditioned results map back exactly; the tests of genericity done in the conditioned
+    frame are invariant under affine reparametrization and a change of length unit.
+    """
+    n = c_monic.shape[-2] - 1
+    b, a = hyperbolic_center(_upper_roots(poly.norm_poly(c_monic), n))
+    cs = _affine(c_monic, a, b)
+    primal = np.abs(cs[..., :4]).max(axis=(-2, -1))
+    dual = np.abs(cs[..., 4:]).max(axis=(-2, -1))
+    length = np.where(dual > 0, dual / np.maximum(primal, 1e-300), 1.0)
+    return a, b, length
+
+
+def hyperbolic_center(z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(x, y)`` ``(...)``: a point ``x + i y`` of the upper half plane whose largest hyperbolic
+    distance to the points ``z`` ``(..., n)`` is (nearly) smallest, chosen among the points, the
+    geodesic midpoints of two of them and their centroid on the hyperboloid model (where the
+    normalized sum of two points is their midpoint). Degenerate input gives ``(0, 1)``."""
+    z = np.where(np.isfinite(z) & (z.imag > 0), z, 1j)
+    x, y = z.real, z.imag
+    r2 = x * x + y * y
+    hyp = np.stack([(r2 + 1) / (2 * y), (r2 - 1) / (2 * y), x / y], axis=-1)  # (..., n, 3)
+    n = z.shape[-1]
+    i, j = np.triu_indices(n, 1)
+    sums = np.concatenate([hyp, hyp[..., i, :] + hyp[..., j, :], hyp.sum(-2, keepdims=True)],
+                          axis=-2)
+    lorentz = sums[..., 0] ** 2 - sums[..., 1] ** 2 - sums[..., 2] ** 2
+    cand = sums / np.sqrt(np.maximum(lorentz, 1e-300))[..., None]
+    # cosh of the distance is the Minkowski product <X, Y> = X0 Y0 - X1 Y1 - X2 Y2
+    cosh = np.einsum("...ka,...ma,a->...km", cand, hyp, np.array([1.0, -1.0, -1.0]))
+    best = np.argmin(cosh.max(axis=-1), axis=-1)[..., None, None]
+    c = np.take_along_axis(cand, best, axis=-2)[..., 0, :]
+    yc = 1.0 / (c[..., 0] - c[..., 1])
+    return c[..., 2] * yc, yc
+
+
+def _upper_roots(norm: np.ndarray, n: int) -> np.ndarray:
+    """The ``n`` roots ``(..., n)`` of real ``norm`` ``(..., 2n+1)`` with the largest imaginary
+    parts (one of each conjugate pair)."""
+    roots = poly.real_poly_roots(norm)
+    order = np.argsort(-roots.imag, axis=-1)[..., :n]
+    return np.take_along_axis(roots, order, axis=-1)
+
+
+def _affine(c: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``C(a s + b) / a^n`` for batched ``a``, ``b`` ``(...)`` (monic stays monic)."""
+    n = c.shape[-2] - 1
+    out = np.zeros_like(c)
+    a, b = np.asarray(a)[..., None], np.asarray(b)[..., None]
+    from math import comb
+
+    for k in range(n + 1):
+        for j in range(k + 1):
+            out[..., j, :] += comb(k, j) * a**j * b ** (k - j) * c[..., k, :]
+    return out / (a**n)[..., None]
+
+
 def norm_quadratics_batch(c_monic: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Quadratic factors of the norm polynomial of monic ``C`` ``(..., n+1, 8)``.
 
     Returns ``(m, code)``: ``m`` ``(..., n, 2)`` holding ``[m0, m1]`` of ``t^2 + m1 t + m0``,
     sorted by ``m0`` then ``m1`` (a canonical labelling A, B, C, ...), and a reason code ``(...)``.
+    The code is float64's *suspicion* (see :func:`_conditioned_roots`);
+    :func:`all_factorizations` confirms it in high precision before refusing.
     """
-    n = c_monic.shape[-2] - 1
-    roots = poly.real_poly_roots(poly.norm_poly(c_monic))
-    # Keep the n roots in the upper half plane (conjugate pairs of a real polynomial).
-    order = np.argsort(-roots.imag, axis=-1)[..., :n]
-    z = np.take_along_axis(roots, order, axis=-1)
+    cs, a, b, _ = _conditioned(c_monic)
+    quads, _, code = _labelled_quadratics(cs, a, b)
+    return quads, code
+
+
+def _label_order(m: np.ndarray) -> np.ndarray:
+    return np.lexsort((m[..., 1], m[..., 0]), axis=-1)
+
+
+def _conditioned_roots(cs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Upper norm roots ``(..., n)`` of a conditioned monic ``cs`` and the suspected code.
+
+    Genericity depends only on the hyperbolic distances ``d`` of the roots in the upper half
+    plane (invariant under every real Moebius reparametrization and the length unit): a real
+    root is at infinite distance from the others (``cosh d - 1 = |z_i - z_j|^2 / (2 y_i y_j)``
+    above ``TOL.real_separation``), a repeated quadratic at distance 0 (``sinh(d/2)`` below
+    ``TOL.repeated``).
+    """
+    n = cs.shape[-2] - 1
+    z = _upper_roots(poly.norm_poly(cs), n)
+    y = z.imag
+    real = np.any(y <= 0.0, axis=-1)
     code = np.zeros(z.shape[:-1], dtype=np.int8)
-    real = np.any(np.abs(z.imag) <= TOL.root_imag * (1.0 + np.abs(z)), axis=-1)
-    m = np.stack([np.abs(z) ** 2, -2.0 * z.real], axis=-1)
-    m = np.take_along_axis(m, np.lexsort((m[..., 1], m[..., 0]), axis=-1)[..., None], axis=-2)
-    scale = 1.0 + np.abs(m).max(axis=(-2, -1))
-    gaps = np.abs(np.diff(m, axis=-2)).max(axis=-1).min(axis=-1) if n > 1 else np.inf
-    code = np.where(gaps <= TOL.repeated * scale, 2, code)
-    code = np.where(real, 1, code)
-    return m, code
+    if n > 1:
+        i, j = np.triu_indices(n, 1)
+        yy = np.maximum(y[..., i] * y[..., j], 1e-300)
+        sep = np.abs(z[..., i] - z[..., j]) ** 2 / (2.0 * yy)
+        code = np.where(np.sqrt(sep.min(axis=-1) / 2.0) <= TOL.repeated, 2, code)
+        real |= sep.max(axis=-1) >= TOL.real_separation
+    return z, np.where(real, 1, code)
 
 
 def factorize_batch(c_monic: np.ndarray, quads: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -149,12 +232,18 @@ class Factorizations:
 
 def all_factorizations_batch(c_monic: np.ndarray) -> Factorizations:
     """Six factorizations of monic cubics ``(..., 4, 8)``: one by HSS13a (order ABC), five by
-    Bennett flips. Invalid items carry a nonzero ``code``; their factors are meaningless."""
+    Bennett flips. Invalid items carry a nonzero ``code``; their factors are meaningless.
+
+    Computed in the conditioned frame of :func:`conditioning_batch` (parameter and length unit
+    normalized) and mapped back, so the result and its genericity verdict do not depend on the
+    length unit or on an affine reparametrization of the input.
+    """
     c_monic = np.asarray(c_monic, dtype=np.float64)
     if c_monic.shape[-2:] != (4, 8):
         raise ValueError(f"a cubic motion polynomial must be (..., 4, 8), got {c_monic.shape}")
-    quads, code = norm_quadratics_batch(c_monic)
-    h, hcode = factorize_batch(c_monic, quads)
+    cs, a, b, unit = _conditioned(c_monic)
+    quads, quads_s, code = _labelled_quadratics(cs, a, b)
+    h, hcode = factorize_batch(cs, quads_s)
     code = np.where(code == 0, hcode, code)
     out = [None] * 6
     out[0] = h
@@ -164,7 +253,37 @@ def all_factorizations_batch(c_monic: np.ndarray) -> Factorizations:
         f[..., pos, :], f[..., pos + 1, :] = k1, k2
         out[dst] = f
         code = np.where(~ok & (code == 0), 3, code)
-    return Factorizations(np.stack(out, axis=-3), quads, code)
+    return Factorizations(_unconditioned(np.stack(out, axis=-3), a, b, unit), quads, code)
+
+
+def _conditioned(c_monic: np.ndarray) -> tuple[np.ndarray, ...]:
+    """``(cs, a, b, unit)``: the conditioned cubic ``cs`` (parameter ``s``, ``t = a s + b``,
+    dual part multiplied by ``unit[4:]``) of :func:`conditioning_batch`."""
+    a, b, length = conditioning_batch(c_monic)
+    unit = np.concatenate([np.ones(a.shape + (4,)), np.ones(a.shape + (4,)) / length[..., None]],
+                          axis=-1)
+    return _affine(c_monic, a, b) * unit[..., None, :], a, b, unit
+
+
+def _unconditioned(h: np.ndarray, a: np.ndarray, b: np.ndarray, unit: np.ndarray) -> np.ndarray:
+    """Factors ``(..., K, n, 8)`` or ``(..., n, 8)`` of the conditioned cubic mapped back:
+    ``h = a h_s + b`` with the dual part in the caller's length unit."""
+    extra = h.ndim - a.ndim - 1
+    ex = (slice(None),) * a.ndim + (None,) * extra
+    h = h / unit[ex] * a[ex + (None,)]
+    h[..., 0] += b[ex]
+    return h
+
+
+def _labelled_quadratics(cs: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, ...]:
+    """``(quads, quads_s, code)``: norm quadratics in the caller's parameter ``t`` (sorted,
+    the labels A, B, C) and the same ones in the conditioned parameter ``s``; genericity code."""
+    zs, code = _conditioned_roots(cs)
+    ms = np.stack([np.abs(zs) ** 2, -2.0 * zs.real], axis=-1)
+    z = a[..., None] * zs + b[..., None]
+    m = np.stack([np.abs(z) ** 2, -2.0 * z.real], axis=-1)
+    order = _label_order(m)[..., None]
+    return np.take_along_axis(m, order, -2), np.take_along_axis(ms, order, -2), code
 
 
 def check_motion(c: np.ndarray) -> np.ndarray:
@@ -199,21 +318,30 @@ def factorize(c: np.ndarray, order: list[int] | None = None) -> np.ndarray:
     """
     mono = check_motion(c)
     n = mono.shape[0] - 1
-    quads, code = norm_quadratics_batch(mono)
-    raise_for_code(int(code))
     order = list(range(n)) if order is None else list(order)
     if sorted(order) != list(range(n)):
         raise ValueError(f"order must be a permutation of 0..{n - 1}, got {order}")
-    h, hcode = factorize_batch(mono, quads[order])
+    cs, a, b, unit = _conditioned(mono)
+    _, quads_s, code = _labelled_quadratics(cs, a, b)
+    raise_for_code(int(code))
+    h, hcode = factorize_batch(cs, quads_s[order])
     raise_for_code(int(hcode))
-    return h
+    return _unconditioned(h, a, b, unit)
 
 
 def all_factorizations(c: np.ndarray) -> Factorizations:
-    """All six factorizations of one cubic ``(4, 8)`` (made monic); raises if not generic."""
+    """All six factorizations of one cubic ``(4, 8)`` (made monic); raises if not generic.
+
+    A float64 suspicion of non-genericity is confirmed in high precision
+    (:mod:`~paraloop_core.algebra.exact`) before refusing; if the motion is generic after all,
+    the factorizations are computed there and rounded to float64.
+    """
     mono = check_motion(c)
     if mono.shape != (4, 8):
         raise ValueError(f"expected a cubic (4, 8), got {mono.shape}")
     f = all_factorizations_batch(mono)
-    raise_for_code(int(f.code))
-    return f
+    if f.code == 0:
+        return f
+    factors, quads, code = exact.factorizations(mono, _FLIP_PLAN)
+    raise_for_code(code)
+    return Factorizations(factors, quads, np.int8(0))

@@ -39,7 +39,6 @@ import trimesh
 from paraloop_core.algebra import dq, poly
 from paraloop_core.errors import FabricationError
 from paraloop_core.fabrication import carve, endlink, grounding, meshing, parts, voxelspace
-from paraloop_core.fabrication.motion_bound import displacement_bounds, motion_bound
 from paraloop_core.fabrication.parts import (
     Assembly,
     Part,
@@ -51,6 +50,7 @@ from paraloop_core.fabrication.parts import (
 )
 from paraloop_core.linkage import loops
 from paraloop_core.realization.clearance import segment_distance
+from paraloop_core.realization.motion_bound import displacement_bounds, motion_bound
 
 if TYPE_CHECKING:
     from paraloop_core.realization.ee_certificate import EndEffectorRealization

@@ -20,9 +20,9 @@ import numpy as np
 
 from paraloop_core.algebra import dq, poly
 from paraloop_core.errors import FabricationError
-from paraloop_core.fabrication.motion_bound import displacement_bounds, motion_bound
 from paraloop_core.linkage import loops
 from paraloop_core.realization.clearance import segment_distance
+from paraloop_core.realization.motion_bound import displacement_bounds, motion_bound
 
 
 @dataclass(frozen=True)

@@ -11,9 +11,9 @@ import numpy as np
 from scipy import ndimage
 
 from paraloop_core.algebra import dq, poly
-from paraloop_core.fabrication.motion_bound import adaptive_params, motion_bound
 from paraloop_core.fabrication.voxelspace import VoxelSpace
 from paraloop_core.linkage import loops
+from paraloop_core.realization.motion_bound import adaptive_params, motion_bound
 
 _CHUNK_POINTS = 3_000_000  # points transformed per numpy call (memory only: ~36 MB float32)
 

@@ -282,10 +282,65 @@ def evolve_motion(res: StartResult) -> np.ndarray:
 
 
 def evolution_settings(options: dict) -> EvolutionSettings:
-    """Settings from a design file's ``evolution`` object (unknown keys raise TypeError)."""
+    """Settings from a design file's ``evolution`` object. Every field must have its JSON type
+    and lie in its documented range (``docs/design-format.md``); otherwise DesignFileError (a
+    ValueError) names the field (``field``) and the accepted range. The iteration budget
+    ``starts * max_iterations`` is capped at 100000 (the time cap of a fit: about 10 ms per
+    iteration with 8 poses, so at most about 15 minutes)."""
+    import math
+
+    from paraloop_core.errors import DesignFileError
+
+    numbers = {"w0": (1.0, 1e6, False), "q": (0.0, 1.0, True), "tol": (1e-15, 1.0, False),
+               "loop_ratio": (1.0, 1e6, True)}
+    integers = {"max_iterations": (1, 10_000), "starts": (1, 1000), "seed": (0, 2**32 - 1),
+                "workers": (1, 256), "virtual": (1, 100)}
+    flags = ("free_reference", "ordered", "loop_fix", "move_guides")
+    allowed = {*numbers, *integers, *flags, "init", "four_pose_indices"}
+    if not isinstance(options, dict):
+        raise DesignFileError("evolution", "must be an object")
+    unknown = sorted((k for k in options if k not in allowed), key=str)
+    if unknown:
+        key = str(unknown[0])[:40].encode("ascii", "backslashreplace").decode()
+        raise DesignFileError(key, f"unknown key {key!r} at evolution "
+                              f"(allowed: {', '.join(sorted(allowed))})")
+
+    def shown(v: object) -> str:
+        text = repr(v) if isinstance(v, (bool, int, float, str, type(None))) else type(v).__name__
+        return (text if len(text) <= 40 else text[:37] + "...").encode(
+            "ascii", "backslashreplace").decode()
+
     opts = dict(options)
-    if opts.get("four_pose_indices") is not None:
-        opts["four_pose_indices"] = tuple(int(i) for i in opts["four_pose_indices"])
+    for name, (lo, hi, open_lo) in numbers.items():
+        v = opts.get(name)
+        if name in opts and (isinstance(v, bool) or not isinstance(v, (int, float))
+                             or not math.isfinite(v) or (v <= lo if open_lo else v < lo)
+                             or (v >= hi if name == "q" else v > hi)):
+            bracket = "(" if open_lo else "["
+            close = ")" if name == "q" else "]"
+            raise DesignFileError(name, f"must be a number in {bracket}{lo:g}, {hi:g}{close}, "
+                                  f"got {shown(v)}")
+    for name, (lo, hi) in integers.items():
+        v = opts.get(name)
+        if name in opts and (isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi):
+            raise DesignFileError(name, f"must be an integer in {lo}..{hi}, got {shown(v)}")
+    for name in flags:
+        if name in opts and not isinstance(opts[name], bool):
+            raise DesignFileError(name, f"must be true or false, got {shown(opts[name])}")
+    if "init" in opts and opts["init"] not in ("random", "four-pose"):
+        raise DesignFileError("init", f"must be 'random' or 'four-pose', got {shown(opts['init'])}")
+    idx = opts.get("four_pose_indices")
+    if idx is not None:
+        if (not isinstance(idx, (list, tuple)) or len(idx) != 4
+                or any(isinstance(i, bool) or not isinstance(i, int) or not 0 <= i < 1000
+                       for i in idx) or idx[0] != 0 or len(set(idx)) != 4):
+            raise DesignFileError("four_pose_indices", "must be null or 4 distinct pose "
+                                  f"indices (0..999) starting with 0, got {shown(idx)}")
+        opts["four_pose_indices"] = tuple(int(i) for i in idx)
+    budget = opts.get("starts", 20) * opts.get("max_iterations", 100)
+    if budget > 100_000:
+        raise DesignFileError("max_iterations", "starts * max_iterations must be <= 100000 "
+                              f"(the iteration budget of a fit), got {budget}")
     return EvolutionSettings(**opts)
 
 

@@ -52,8 +52,9 @@ def _check_poses(poses: np.ndarray) -> np.ndarray:
         raise ValueError(f"four-pose interpolation needs poses of shape (4, 8), got {s.shape}")
     if not np.all(np.isfinite(s)):
         raise ValueError("poses must be finite")
+    # Primal parts are compared among themselves only: the dual part carries the length unit.
     pn = np.linalg.norm(s[:, :4], axis=-1)
-    bad = np.flatnonzero(pn <= TOL.zero * (1.0 + np.linalg.norm(s[:, 4:], axis=-1)))
+    bad = np.flatnonzero(pn <= TOL.zero * pn.max())
     if bad.size:
         raise ValueError(f"pose {int(bad[0])} has a zero primal part (not a pose)")
     return dq.study_project(dq.normalize(s))
@@ -121,12 +122,16 @@ def four_pose_families(poses: np.ndarray) -> FourPoseFamilies:
             "degenerate poses: the four poses span less than a projective 3-space in the Study "
             "quadric (rank < 4), so no cubic interpolates them", "rank")
     for i in range(1, 4):
-        if abs(scaled[i, 4]) <= TOL.residual:
+        # Pitch relative to the pose's own displacement (not to the largest one), so a pose
+        # that is merely close to S_0 is accepted: it is visited at a large |t|. Products of
+        # unit inputs carry round-off ~1e-16 |D|, so a ratio above TOL.zero_pitch is certain.
+        ratio = abs(scaled[i, 4]) / max(np.linalg.norm(scaled[i, 4:]), 1e-300)
+        if ratio <= TOL.zero_pitch:
             raise InterpolationError(
-                f"pose {i} is reached from pose 0 by a zero-pitch rotation (its relative pose "
-                "has zero dual-scalar part): it lies on a ruling through S_0 and cannot be "
-                f"visited; perturb pose {i} slightly (e.g. translate it along the rotation axis)",
-                "zero-pitch")
+                f"pose {i} is reached from pose 0 by a rotation without pitch (translation "
+                f"along the axis / offset = {ratio:.1e} <= {TOL.zero_pitch:g}): within the "
+                "precision of the input it lies on a ruling through S_0 and cannot be visited; "
+                f"move pose {i} along its rotation axis by a small amount", "zero-pitch")
     c = _rulings(scaled)
     k = c @ rel
     t = _polar((c @ scaled)[:, None, :], scaled[None, 1:]) / scaled[1:, 4]

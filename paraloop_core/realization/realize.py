@@ -10,6 +10,7 @@ Sec. 5.2: cylindrical design spaces from the certificate.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
@@ -18,6 +19,7 @@ import numpy as np
 from paraloop_core.algebra import dq
 from paraloop_core.errors import RealizationError
 from paraloop_core.linkage import loops
+from paraloop_core.realization import verify
 from paraloop_core.realization.collision import colliding_polylines
 from paraloop_core.realization.offsetting import (
     DIGITS,
@@ -28,6 +30,19 @@ from paraloop_core.realization.offsetting import (
     sequence_order,
 )
 from paraloop_core.realization.polyline import polyline_length, shortest_polyline
+
+#: Wanted gap between reported and proven pair minima, as a fraction of the polyline length l
+#: (plus :data:`verify.RELATIVE` of the pair's own distance).
+VERIFY_TOL = 1e-6
+
+
+def joint_bounds(jf: np.ndarray, points: np.ndarray, pairs: np.ndarray, length: float
+                 ) -> verify.PairBounds:
+    """Proven lower bounds of consecutive bars ``pairs`` (rows of
+    :data:`verify.JOINT_PAIRS`). Reported, not required: the paper's model (and so the search)
+    lets two links meet at their common joint, where the joint hardware separates them; a
+    value below 2 rho says the bars' cylinders overlap near that joint."""
+    return verify.polyline_bounds(jf, points, pairs, 1e-3 * length)
 
 
 @dataclass(frozen=True)
@@ -59,11 +74,20 @@ class Realization:
     pair_t: np.ndarray
     design_space_radii: np.ndarray
     stats: dict
+    pair_lower: np.ndarray
+    joint_pairs: np.ndarray
+    joint_lower: np.ndarray
+    tolerance: float
 
     @property
     def min_clearance(self) -> float:
         """Smallest centre-line distance over the checked pairs and the cycle (>= 2 radius)."""
         return float(self.pair_distance.min())
+
+    @property
+    def certified_clearance(self) -> float:
+        """Proven lower bound of every checked centre-line distance over the cycle."""
+        return float(min(self.pair_lower.min(), self.joint_lower.min()))
 
 
 #: ``(42, 2)``: link of each bar of the :data:`offsetting.OFFSET_PAIRS` rows (-1 for pins).
@@ -114,9 +138,11 @@ def realization_to_dict(r: Realization) -> dict:
             "labels": [_edge_label(int(e1)), _edge_label(int(e2))],
             "links": [int(la), int(lb)],
             "min_distance": float(dist),
+            "lower_bound": float(low),
             "t": None if np.isinf(t) else float(t),
         }
-        for (e1, e2, la, lb), dist, t in zip(r.pairs, r.pair_distance, r.pair_t, strict=True)
+        for (e1, e2, la, lb), dist, low, t in zip(r.pairs, r.pair_distance, r.pair_lower,
+                                                   r.pair_t, strict=True)
     ]
     return {
         "points": r.points.tolist(),
@@ -124,6 +150,14 @@ def realization_to_dict(r: Realization) -> dict:
         "separation": r.separation,
         "pairs": pairs,
         "min_clearance": r.min_clearance,
+        "certified_clearance": r.certified_clearance,
+        "tolerance": r.tolerance,
+        "relative_tolerance": verify.RELATIVE,
+        "joint_pairs": [{"edges": [int(e1), int(e2)], "labels": [_edge_label(int(e1)),
+                                                                   _edge_label(int(e2))],
+                         "lower_bound": float(lo)}
+                        for (e1, e2, _, _), lo in zip(r.joint_pairs, r.joint_lower,
+                                                       strict=True)],
         "design_space_radii": r.design_space_radii.tolist(),
         "stats": {key: (float(v) if key == "length_ratio" else int(v))
                   for key, v in r.stats.items()},
@@ -208,20 +242,38 @@ class Search:
         """Step 4 for the thin polyline ``v`` ``(6, 3)``: ``run(order) -> (seq, examined)``."""
         return OffsetSearch(self.lp, v, self.d, self.rho)
 
+    def verify(self, step: OffsetSearch, seq: int) -> object | None:
+        """Sound bounds (:mod:`verify`) of the pairs of sequence ``seq``, or None when some
+        pair cannot be proven >= 2 rho (the exact check missed a minimum or is unsure); the
+        consecutive bars are bounded for the report (:func:`joint_bounds`)."""
+        points = step.points(seq)
+        _, t = step.certificate(seq)
+        pairs = verify.polyline_bounds(self.jf, points, OFFSET_PAIRS, VERIFY_TOL * self.length,
+                                       t, need=2.0 * self.rho)
+        if pairs.lower.min() < 2.0 * self.rho:
+            return None
+        return pairs, joint_bounds(self.jf, points, verify.JOINT_PAIRS, self.length)
+
     def result(self, step: OffsetSearch, seq: int, tau: np.ndarray, v: np.ndarray,
-               stats: dict) -> Realization:
-        """The realization by offset sequence ``seq`` of ``step``; ``stats`` lacks the
-        ``length_ratio``."""
-        dist, t = step.certificate(seq)
+               stats: dict, proof: object) -> Realization:
+        """The realization by offset sequence ``seq`` of ``step`` with the bounds ``proof`` of
+        :meth:`verify`; ``stats`` lacks the ``length_ratio``."""
+        pairs, joints = proof
         points = step.points(seq)
         stats["length_ratio"] = float(polyline_length(points)) / self.length
+        dist = pairs.upper
         return Realization(self.jf, points, float(self.rho), float(self.d), self.length,
                            float(self.p), tau, OFFSET_WAYS[DIGITS[seq]], self.v0, v,
-                           OFFSET_PAIRS, dist, t, design_space_radii(dist, self.rho), stats)
+                           OFFSET_PAIRS, dist, pairs.t, design_space_radii(pairs.lower, self.rho),
+                           stats, pairs.lower, verify.JOINT_PAIRS, joints.lower,
+                           VERIFY_TOL * self.length)
 
     def run(self, *, p: float, rho: float | None, d: float | None, d_fraction: float,
-            rho_fraction: float, max_k: int):
-        """Parameters as :func:`realize`; the :meth:`result` of the first success."""
+            rho_fraction: float, max_k: int, deadline: float | None = None):
+        """Parameters as :func:`realize`; the :meth:`result` of the first success.
+
+        ``deadline`` (``time.monotonic()`` value): past it the search stops with reason
+        ``time-limit`` (checked between candidates)."""
         self.v0, self.length = v0, length = self.initial()
         self.d = d = d_fraction * length if d is None else d
         self.rho = rho = rho_fraction * d if rho is None else rho
@@ -231,16 +283,32 @@ class Search:
         free = np.array([i not in (self.fixed or {}) for i in range(6)])
         patterns = DIGITS[np.all(DIGITS[:, ~free] == 0, axis=1)][1:]  # 3^(6-f) - 1, index order
         tau_unit = np.where(patterns == 2, -1, patterns)
-        checks = steps_back = tried = 0
+        checks = steps_back = tried = refuted = 0
         for k in range(max_k + 1):
             tau = np.zeros((1, 6), int) if k == 0 else k * tau_unit
             polys = v0 + (tau * length / p)[..., None] * self.lp.u
             order = np.argsort(self.lengths(polys), kind="stable")
             tau, polys = tau[order], polys[order]
             for pos in _free_candidates(len(polys), self.colliding(k, tau, polys)):
+                if deadline is not None and time.monotonic() > deadline:
+                    raise RealizationError(
+                        f"time limit reached at k = {k} (p = {p}, d = {d:.4g}, rho = {rho:.4g}):"
+                        f" {checks + pos} thin polylines checked, {steps_back} collision-free "
+                        "ones failed the 2 rho clearance", "time-limit")
                 step = self.step4(polys[pos])
-                seq, n_seq = step.run(sequence_order(np.sign(tau[pos])))
-                tried += n_seq
+                order = sequence_order(np.sign(tau[pos]))
+                while True:  # the first sequence the sound check (verify) confirms
+                    if deadline is not None and time.monotonic() > deadline:
+                        raise RealizationError(
+                            f"time limit reached at k = {k} while verifying step-4 candidates "
+                            f"({refuted} refuted by the sound check)", "time-limit")
+                    seq, n_seq = step.run(order)
+                    tried += n_seq
+                    proof = None if seq is None else self.verify(step, seq)
+                    if seq is None or proof is not None:
+                        break
+                    refuted += 1
+                    order = order[np.flatnonzero(order == seq)[0] + 1:]
                 if seq is None:
                     steps_back += 1
                     continue
@@ -249,8 +317,9 @@ class Search:
                 stats = {"k": k, "collision_checks": checks + len(polys),
                          "steps_back": steps_back, "min_distance_computations": tried,
                          "offset_rank": min(n_seq - 1, 2),
-                         "collision_checks_sequential": checks + pos + 1}
-                return self.result(step, seq, tau[pos], polys[pos], stats)
+                         "collision_checks_sequential": checks + pos + 1,
+                         "refuted_by_verification": refuted}
+                return self.result(step, seq, tau[pos], polys[pos], stats, proof)
             checks += len(polys)
         raise RealizationError(self.cap_message.format(
             max_k=max_k, p=p, d=d, rho=rho, checks=checks, steps_back=steps_back), "cap-reached")
@@ -266,6 +335,7 @@ def realize(
     rho_fraction: float = 0.25,
     fixed: dict[int, float] | None = None,
     max_k: int = 50,
+    deadline: float | None = None,
 ) -> Realization:
     """Collision-free realization of the loop ``joint_factors`` ``(6, 8)`` (Sec. 5.1).
 
@@ -273,7 +343,9 @@ def realize(
     on each axis, bars have radius ``rho`` (default ``rho_fraction * d``), shifts are
     ``tau l / p``; ``fixed`` maps a vertex index to its held position along its axis (design
     units from the axis foot point). Raises :class:`RealizationError` (``bad-parameters``,
-    ``singular-loop``, ``cap-reached`` when ``k`` would exceed ``max_k``).
+    ``singular-loop``, ``cap-reached`` when ``k`` would exceed ``max_k``, ``time-limit`` past
+    ``deadline``, a ``time.monotonic()`` value).
     """
     return Search(joint_factors, fixed).run(p=p, rho=rho, d=d, d_fraction=d_fraction,
-                                            rho_fraction=rho_fraction, max_k=max_k)
+                                            rho_fraction=rho_fraction, max_k=max_k,
+                                            deadline=deadline)

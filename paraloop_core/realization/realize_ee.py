@@ -18,6 +18,7 @@ from collections.abc import Callable
 import numpy as np
 
 from paraloop_core.errors import RealizationError
+from paraloop_core.realization import verify
 from paraloop_core.realization.clearance import PairMotions, min_distance_batch, segment_distance
 from paraloop_core.realization.collision import pair_collisions
 from paraloop_core.realization.ee_certificate import (
@@ -44,7 +45,10 @@ from paraloop_core.realization.offsetting import (
     LoopMotions,
     OffsetSearch,
 )
-from paraloop_core.realization.realize import Realization, Search
+from paraloop_core.realization.realize import VERIFY_TOL, Realization, Search, joint_bounds
+
+#: Consecutive-bar pairs without the replaced end-link bar ``S_3E_3`` (edge 6).
+_EE_JOINT_PAIRS = verify.JOINT_PAIRS[~np.any(verify.JOINT_PAIRS[:, :2] == 6, axis=1)]
 
 
 def _axes_of(pts: tuple[int, ...]) -> set[int]:
@@ -282,17 +286,34 @@ class _EffectorSearch(Search):
     def step4(self, v: np.ndarray) -> _Step4:
         return _Step4(self.lp, self.mot, self.ee, v, self.d, self.rho, self.clearance)
 
-    def result(self, step: _Step4, seq: int, tau: np.ndarray, v: np.ndarray, stats: dict
-               ) -> EndEffectorRealization:
+    def verify(self, step: _Step4, seq: int) -> object | None:
+        """Sound bounds of the bar and pin pairs (:mod:`verify`); the pairs with P keep the
+        exact edge-face certificate (:mod:`facecollide`)."""
+        codes = step.codes(np.array([seq]))[0]
+        t = step.t[np.arange(len(STEP4_ROWS)), codes][:len(BASE_PAIRS)]  # base rows first
+        points = step.search.points(seq)
+        tol = VERIFY_TOL * self.length
+        pairs = verify.polyline_bounds(self.jf, points, BASE_PAIRS, tol, t, need=2.0 * self.rho)
+        if pairs.lower.min() < 2.0 * self.rho:
+            return None
+        return pairs, joint_bounds(self.jf, points, _EE_JOINT_PAIRS, self.length)
+
+    def result(self, step: _Step4, seq: int, tau: np.ndarray, v: np.ndarray, stats: dict,
+               proof: object) -> EndEffectorRealization:
+        pairs, joints = proof
         codes = step.codes(np.array([seq]))[0]
         rows = np.arange(len(STEP4_ROWS))
         dist, t = step.value[rows, codes], step.t[rows, codes]
         points = step.search.points(seq)
         base = rows < len(BASE_PAIRS)
+        dist[base], t[base] = pairs.upper, pairs.t
+        lower = dist.copy()
+        lower[base] = pairs.lower
         stats["length_ratio"] = float(ee_length(points, self.anchors, offset=True)) / self.length
         real = Realization(self.jf, points, float(self.rho), float(self.d), self.length,
                            float(self.p), tau, OFFSET_WAYS[DIGITS[seq]], self.v0, v, BASE_PAIRS,
-                           dist[base], t[base], design_space_radii(dist, self.rho), stats)
+                           dist[base], t[base], design_space_radii(lower, self.rho), stats,
+                           pairs.lower, _EE_JOINT_PAIRS, joints.lower, VERIFY_TOL * self.length)
         ee = ~base
         return EndEffectorRealization(
             real, self.ee, tuple(r[3] for r, e in zip(STEP4_ROWS, ee, strict=True) if e),
@@ -312,6 +333,7 @@ def realize_with_effector(
     fixed: dict[int, float] | None = None,
     max_k: int = 50,
     ee_clearance: float | None = None,
+    deadline: float | None = None,
 ) -> EndEffectorRealization:
     """Collision-free realization of ``joint_factors`` ``(6, 8)`` whose end link carries
     ``effector`` (from :func:`endeffector.attach`). Parameters as :func:`realize.realize`
@@ -320,4 +342,4 @@ def realize_with_effector(
     with the end link routed ``V_2 L R V_3``. Raises :class:`RealizationError`."""
     search = _EffectorSearch(joint_factors, fixed, effector, ee_clearance)
     return search.run(p=p, rho=rho, d=d, d_fraction=d_fraction, rho_fraction=rho_fraction,
-                      max_k=max_k)
+                      max_k=max_k, deadline=deadline)

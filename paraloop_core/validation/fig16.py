@@ -69,7 +69,15 @@ def sample_targets(c: np.ndarray, count: int, inertia: metric.Inertia) -> np.nda
 def run(starts: int = 500, targets: int = 10, seed: int = 0, workers: int = 1,
         max_iterations: int = 100,
         progress: Callable[[float, str], None] | None = None) -> Fig16Run:
-    """Run the Fig. 16 experiment (all starts); see the module docstring."""
+    """Run the Fig. 16 experiment (all starts); see the module docstring. Arguments must be
+    true integers (``targets`` >= 5, ``seed`` >= 0, the others >= 1): ParaloopError."""
+    from paraloop_core.errors import ParaloopError
+
+    for name, value, lo in (("starts", starts, 1), ("targets", targets, 5), ("seed", seed, 0),
+                            ("workers", workers, 1), ("max_iterations", max_iterations, 1)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < lo:
+            raise ParaloopError(f"{name} must be an integer >= {lo}, got {value!r}",
+                                "bad-parameters")
     inertia = metric.sphere(RADIUS)
     c = target_motion(np.random.default_rng(seed))
     poses = sample_targets(c, targets, inertia)

@@ -79,7 +79,15 @@ def run(
     workers: int = 1,
     progress: Callable[[int, int], None] | None = None,
 ) -> list[dict]:
-    """Realize the AS and DB loop of ``n_motions`` random cubics; rows in job order."""
+    """Realize the AS and DB loop of ``n_motions`` random cubics; rows in job order. Arguments
+    must be true integers (``n_motions``, ``workers`` >= 1, ``seed`` >= 0): ParaloopError."""
+    from paraloop_core.errors import ParaloopError
+
+    for name, value, lo in (("n_motions", n_motions, 1), ("seed", seed, 0),
+                            ("workers", workers, 1)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < lo:
+            raise ParaloopError(f"{name} must be an integer >= {lo}, got {value!r}",
+                                "bad-parameters")
     lp = random_loops(seed, n_motions)
     jobs = [(m, k, lp[m, k]) for m in range(n_motions) for k in range(2)]
     rows: list[dict] = []

@@ -1,0 +1,184 @@
+"""Shared boundary code of the command line: output paths checked before any work starts,
+all-or-nothing writes (temporary files + rename, nothing left on failure), argparse types with
+clear ranges, one-line messages and the exit codes of ``docs/result-format.md``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import os
+import tempfile
+from collections.abc import Callable, Iterable, Iterator
+from pathlib import Path
+
+from paraloop_core.errors import ParaloopError
+
+#: exit codes (docs/result-format.md, "Command line")
+EXIT_OK, EXIT_INTERNAL, EXIT_REFUSED, EXIT_NOT_REALIZED, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
+REPORT = "please report it with the input file to the paraloop issue tracker"
+
+
+class OutputError(ParaloopError):
+    """An output path cannot be used (exists without --force, not a directory, not writable)."""
+
+    reason = "output"
+
+
+def one_line(exc: BaseException | str, limit: int = 400) -> str:
+    """The message on one line, bounded (error messages may quote user input)."""
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def int_range(lo: int, hi: int) -> Callable[[str], int]:
+    """argparse type: a decimal integer in ``lo..hi``."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text, 10)
+        except ValueError:
+            value = None
+        if value is None or not lo <= value <= hi:
+            raise argparse.ArgumentTypeError(f"must be an integer in {lo}..{hi}, got {text!r}")
+        return value
+
+    return parse
+
+
+def float_range(lo: float, hi: float, *, lo_open: bool = False) -> Callable[[str], float]:
+    """argparse type: a finite number in ``[lo, hi]`` (``(lo, hi]`` with ``lo_open``)."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = float("nan")
+        if not (value > lo if lo_open else value >= lo) or not value <= hi:
+            raise argparse.ArgumentTypeError(
+                f"must be a number in {'(' if lo_open else '['}{lo:g}, {hi:g}], got {text!r}")
+        return value
+
+    return parse
+
+
+def _writable_dir(d: Path) -> None:
+    """``d`` (existing) must be a writable directory; a missing one a creatable directory."""
+    probe = d
+    while not probe.exists() and probe != probe.parent:
+        if probe.is_symlink():
+            raise OutputError(f"{probe}: dangling symbolic link in the output path")
+        probe = probe.parent
+    if not probe.is_dir():
+        raise OutputError(f"{probe}: exists and is not a directory")
+    if not os.access(probe, os.W_OK | os.X_OK):
+        raise OutputError(f"{probe}: directory is not writable")
+
+
+def check_file_target(path: Path, force: bool) -> None:
+    """``path`` can be written: not a directory, absent (or ``force``), in a writable folder."""
+    if path.is_dir():
+        raise OutputError(f"{path}: is a directory (give a file name)")
+    if path.exists() or path.is_symlink():
+        if not path.is_file():
+            raise OutputError(f"{path}: exists and is not a regular file")
+        if not force:
+            raise OutputError(f"{path}: already exists (use --force to overwrite)")
+    _writable_dir(path.parent)
+
+
+def check_dir_target(out: Path, names: Iterable[str], force: bool) -> None:
+    """``out`` is (or can become) a writable directory and none of ``names`` in it exists
+    (unless ``force``)."""
+    if out.exists() and not out.is_dir():
+        raise OutputError(f"{out}: exists and is not a directory")
+    _writable_dir(out)
+    if out.is_dir():
+        for name in names:
+            check_file_target(out / name, force)
+
+
+def check_not_inputs(targets: Iterable[Path], inputs: Iterable[Path]) -> None:
+    """Refuse an output that would overwrite one of the input files."""
+    ins = {_key(p): p for p in inputs}
+    for t in targets:
+        if _key(t) in ins:
+            raise OutputError(f"{t}: would overwrite the input {ins[_key(t)]}")
+
+
+def _key(p: Path) -> str:
+    try:
+        return os.path.normcase(str(p.resolve()))
+    except (OSError, RuntimeError):
+        return os.path.normcase(os.path.abspath(p))
+
+
+def check_distinct(targets: list[Path], inputs: list[Path]) -> None:
+    """Refuse two inputs that would write the same output file."""
+    seen: dict[str, Path] = {}
+    for t, src in zip(targets, inputs, strict=True):
+        k = _key(t)
+        if k in seen:
+            what = ("is given twice" if _key(seen[k]) == _key(src)
+                    else f"and {seen[k]} would both write {t}")
+            raise OutputError(f"{src} {what}; rename one or solve them into separate folders")
+        seen[k] = src
+
+
+@contextlib.contextmanager
+def created_dir(out: Path) -> Iterator[Path]:
+    """Create ``out`` (and parents) if missing; remove what was created if the block fails and
+    left it empty."""
+    missing = []
+    probe = out
+    while not probe.exists() and probe != probe.parent:
+        missing.append(probe)
+        probe = probe.parent
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise OutputError(f"{out}: cannot create the directory ({exc.strerror or exc})") from exc
+    try:
+        yield out
+    except BaseException:
+        for d in missing:  # deepest first
+            with contextlib.suppress(OSError):
+                d.rmdir()
+        raise
+
+
+def write_files(out: Path, files: Iterable[tuple[str, bytes]]) -> None:
+    """All of ``files`` into ``out`` or none: each is written to a temporary file there, then
+    all are renamed; on failure the temporaries are removed."""
+    with created_dir(out):
+        staged: list[tuple[str, Path]] = []
+        try:
+            for name, data in files:
+                fd, tmp = tempfile.mkstemp(prefix=f".{name}.", suffix=".tmp", dir=out)
+                staged.append((name, Path(tmp)))
+                with os.fdopen(fd, "wb") as fh:
+                    fh.write(data)
+            for name, tmp in staged:
+                os.replace(tmp, out / name)
+        except BaseException:
+            for _, tmp in staged:
+                tmp.unlink(missing_ok=True)
+            raise
+
+
+@contextlib.contextmanager
+def staged_dir(out: Path) -> Iterator[Path]:
+    """A temporary folder inside ``out`` for writers that take a path (plots, CSV): on success
+    its files are moved into ``out``, on failure it is deleted."""
+    with created_dir(out), tempfile.TemporaryDirectory(prefix=".staging.", dir=out) as tmp:
+        yield Path(tmp)
+        for f in sorted(Path(tmp).iterdir()):
+            os.replace(f, out / f.name)
+
+
+def add_seed_and_workers(p: argparse.ArgumentParser, seed_help: str) -> None:
+    """The ``--seed`` and ``--workers`` options shared by the ``validate`` commands."""
+    p.add_argument("--seed", type=int_range(0, 2**32 - 1), default=0,
+                   help=f"{seed_help} (0..2^32-1)")
+    p.add_argument("--workers", type=int_range(1, 256),
+                   default=min(2, os.cpu_count() or 1), help="worker processes (1..256)")

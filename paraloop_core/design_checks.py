@@ -1,0 +1,208 @@
+"""Boundary checks of the design format: the documented limits, reading a file safely and
+field validators whose errors are one line naming the JSON path and the accepted range.
+
+The same limits are written in the shipped JSON Schema ``paraloop_core/design.schema.json``
+(documented in ``docs/design-format.md``); ``tests/test_fuzz_design.py`` checks that every
+design accepted here is accepted by the schema too.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import reprlib
+import stat
+from pathlib import Path
+from typing import Any
+
+from paraloop_core.errors import DesignFileError
+
+#: largest design file read (bytes), checked before reading
+MAX_FILE_BYTES = 5 * 1024 * 1024
+#: deepest nesting of JSON arrays/objects (a valid design needs 4)
+MAX_DEPTH = 16
+#: longest integer literal accepted by the parser (decimal digits)
+MAX_INT_DIGITS = 100
+#: number of poses (``poses``), and at most this many ``motion.extra_poses``
+MIN_POSES, MAX_POSES = 4, 1000
+#: largest magnitude of any length or other number (design units: positions up to 1e12 keep
+#: the required scale invariance from 1e-6 to 1e8 units with room to spare)
+MAX_LENGTH = 1e12
+#: longest ``name`` and ``end_effector.mesh`` strings
+MAX_NAME, MAX_PATH = 1000, 4096
+#: ``realization.p`` (shift divisor) and ``realization.max_k`` (search cap)
+P_RANGE = (1.0, 1e4)
+MAX_K_RANGE = (1, 1000)
+#: ``realization.d_fraction`` and ``realization.rho_fraction``
+FRACTION_RANGE = (1e-6, 10.0)
+#: ``realization.d`` and ``realization.rho`` relative to the poses' extent (max |p_i - p_0|)
+RELATIVE_LENGTH_RANGE = (1e-6, 1e3)
+#: ``inertia.weight``
+WEIGHT_RANGE = (1e-6, 1e6)
+#: end-effector vertex indices ``L`` / ``R``
+MAX_VERTEX_INDEX = 10**7
+
+_REPR = reprlib.Repr()
+_REPR.maxstring = _REPR.maxother = _REPR.maxlong = 40
+_REPR.maxlist = _REPR.maxtuple = _REPR.maxdict = 4
+_REPR.maxlevel = 2
+
+
+def short(v: Any) -> str:
+    """A bounded, single-line, ASCII ``repr`` for error messages (safe on deep or huge values)."""
+    try:
+        text = _REPR.repr(v)
+    except (RecursionError, ValueError):
+        text = f"<{type(v).__name__}>"
+    return text.encode("ascii", "backslashreplace").decode("ascii")
+
+
+def key(k: Any) -> str:
+    """A JSON object key for a field path (bounded, ASCII, no quotes)."""
+    text = short(k)
+    return text[1:-1] if isinstance(k, str) and len(text) >= 2 else text
+
+
+def _g(x: float) -> str:
+    return f"{x:g}"
+
+
+def number(v: Any, path: str, lo: float = -MAX_LENGTH, hi: float = MAX_LENGTH, *,
+           lo_open: bool = False, allow_none: bool = False) -> float | None:
+    """A finite JSON number (not a bool) in ``[lo, hi]`` (``(lo, hi]`` with ``lo_open``)."""
+    if v is None and allow_none:
+        return None
+    rng = f"{'(' if lo_open else '['}{_g(lo)}, {_g(hi)}]"
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise DesignFileError(path, f"must be a number in {rng}, got {short(v)}")
+    if isinstance(v, float) and not math.isfinite(v):
+        raise DesignFileError(path, f"must be a finite number in {rng}, got {short(v)}")
+    if (v <= lo if lo_open else v < lo) or v > hi:  # exact int/float comparison: no overflow
+        raise DesignFileError(path, f"must be in {rng}, got {short(v)}")
+    return float(v)
+
+
+def positive(v: Any, path: str, hi: float = MAX_LENGTH, *, allow_none: bool = False) -> Any:
+    """A number in ``(0, hi]``."""
+    return number(v, path, 0.0, hi, lo_open=True, allow_none=allow_none)
+
+
+def integer(v: Any, path: str, lo: int, hi: int) -> int:
+    """A true JSON integer (not a bool, not ``2.0``) in ``lo..hi``."""
+    if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
+        raise DesignFileError(path, f"must be an integer in {lo}..{hi}, got {short(v)}")
+    return int(v)
+
+
+def flag(v: Any, path: str) -> bool:
+    if not isinstance(v, bool):
+        raise DesignFileError(path, f"must be true or false, got {short(v)}")
+    return v
+
+
+def obj(v: Any, path: str) -> dict:
+    if not isinstance(v, dict):
+        raise DesignFileError(path, f"must be an object, got {type(v).__name__}")
+    return v
+
+
+def array(v: Any, path: str, lo: int, hi: int, what: str = "items") -> list:
+    """A JSON array with ``lo..hi`` entries."""
+    if not isinstance(v, (list, tuple)) or not lo <= len(v) <= hi:
+        size = f"{lo}" if lo == hi else f"{lo}..{hi}"
+        got = f"{len(v)} entries" if isinstance(v, (list, tuple)) else short(v)
+        raise DesignFileError(path, f"must be a list of {size} {what}, got {got}")
+    return list(v)
+
+
+def check_keys(d: dict, allowed: set[str], path: str) -> None:
+    """Refuse the first unknown key, naming it and the allowed ones."""
+    extra = sorted((k for k in d if k not in allowed), key=str)
+    if extra:
+        raise DesignFileError(f"{path}.{key(extra[0])}", f"unknown key {short(extra[0])} at {path} "
+                              f"(allowed: {', '.join(sorted(allowed))})")
+
+
+def check_depth(data: Any, path: str = "design") -> None:
+    """Refuse nesting deeper than :data:`MAX_DEPTH` (iteratively: no RecursionError)."""
+    stack = [(data, 1)]
+    while stack:
+        node, depth = stack.pop()
+        if isinstance(node, dict):
+            children: Any = node.values()
+        elif isinstance(node, (list, tuple)):
+            children = node
+        else:
+            continue
+        if depth > MAX_DEPTH:
+            raise DesignFileError(path, f"nested deeper than {MAX_DEPTH} levels")
+        stack.extend((c, depth + 1) for c in children)
+
+
+def read_text(path: str | Path) -> str:
+    """The text of a regular file of at most :data:`MAX_FILE_BYTES`, decoded as UTF-8 (an
+    optional BOM is dropped); FIFOs, devices and directories are refused without blocking."""
+    try:
+        st = os.stat(path)
+    except (OSError, ValueError) as exc:
+        raise DesignFileError("file", f"cannot read: {getattr(exc, 'strerror', None) or exc}")\
+            from exc
+    if stat.S_ISDIR(st.st_mode):
+        raise DesignFileError("file", "cannot read: is a directory")
+    if not stat.S_ISREG(st.st_mode):
+        raise DesignFileError("file", "cannot read: not a regular file (FIFO, device or socket)")
+    if st.st_size > MAX_FILE_BYTES:
+        raise DesignFileError("file", f"{st.st_size} bytes, over the limit of "
+                              f"{MAX_FILE_BYTES} bytes (5 MB)")
+    try:
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_BINARY", 0))
+        with os.fdopen(fd, "rb") as fh:
+            if not stat.S_ISREG(os.fstat(fh.fileno()).st_mode):
+                raise DesignFileError("file", "cannot read: not a regular file")
+            raw = fh.read(MAX_FILE_BYTES + 1)
+    except OSError as exc:
+        raise DesignFileError("file", f"cannot read: {exc.strerror or exc}") from exc
+    if len(raw) > MAX_FILE_BYTES:
+        raise DesignFileError("file", f"over the limit of {MAX_FILE_BYTES} bytes (5 MB)")
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise DesignFileError("file", f"not UTF-8 text (invalid byte at offset {exc.start})")\
+            from exc
+
+
+def _constant(name: str) -> Any:
+    raise DesignFileError("file", f"{name} is not valid JSON (numbers must be finite)")
+
+
+def _int(text: str) -> int:
+    if len(text) > MAX_INT_DIGITS:
+        raise DesignFileError("file", f"integer literal of {len(text)} characters "
+                              f"(limit {MAX_INT_DIGITS})")
+    return int(text)
+
+
+def _pairs(pairs: list[tuple[str, Any]]) -> dict:
+    out = dict(pairs)
+    if len(out) != len(pairs):
+        seen: set[str] = set()
+        for k, _ in pairs:
+            if k in seen:
+                raise DesignFileError("file", f"duplicate key {short(k)} in an object")
+            seen.add(k)
+    return out
+
+
+def parse_json(text: str) -> Any:
+    """Strict JSON: no NaN/Infinity, no duplicate keys, bounded integers and nesting."""
+    try:
+        data = json.loads(text, parse_constant=_constant, parse_int=_int,
+                          object_pairs_hook=_pairs)
+    except json.JSONDecodeError as exc:
+        raise DesignFileError("file", f"not valid JSON (line {exc.lineno} column {exc.colno}: "
+                              f"{exc.msg})") from exc
+    except RecursionError as exc:
+        raise DesignFileError("file", f"nested deeper than {MAX_DEPTH} levels") from exc
+    check_depth(data, "file")
+    return data

@@ -1,0 +1,1 @@
+"""Independent referee of paraloop results (shares no code with ``paraloop_core``)."""
