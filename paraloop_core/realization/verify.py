@@ -21,7 +21,7 @@ re-checked here by branch and bound with rigorous displacement bounds:
 
 Result per pair: ``upper`` (a distance attained at ``t``: never below the true minimum) and
 ``lower`` (proven: never above it), ``upper - lower <= tol + RELATIVE * upper`` unless the cell
-cap was reached;
+cap was reached or (with ``need``) ``lower >= 2 need`` already;
 then ``lower`` is still sound and the caller must treat a pair it cannot clear as unsure.
 """
 
@@ -132,7 +132,9 @@ def _one_pair(charts: tuple[np.ndarray, np.ndarray], fixed: np.ndarray, moving: 
                 visited += x.size
         front = []
         for chart, x, r, _d, low in evaluated:
-            open_ = low < best - tol - RELATIVE * best
+            # precise near the minimum; a pair proven clear of twice what is needed is
+            # done (its minimum is then known to lower precision: lower <= true <= upper)
+            open_ = (low < best - tol - RELATIVE * best) & ~((need > 0) & (low >= 2.0 * need))
             if visited >= _MAX_CELLS:
                 open_[:] = False
             lower = min(lower, float(low[~open_].min(initial=np.inf)))
