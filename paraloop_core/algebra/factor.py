@@ -85,14 +85,7 @@ def _upper_roots(norm: np.ndarray, n: int) -> np.ndarray:
 def _affine(c: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """``C(a s + b) / a^n`` for batched ``a``, ``b`` ``(...)`` (monic stays monic)."""
     n = c.shape[-2] - 1
-    out = np.zeros_like(c)
-    a, b = np.asarray(a)[..., None], np.asarray(b)[..., None]
-    from math import comb
-
-    for k in range(n + 1):
-        for j in range(k + 1):
-            out[..., j, :] += comb(k, j) * a**j * b ** (k - j) * c[..., k, :]
-    return out / (a**n)[..., None]
+    return poly.reparametrize(c, a, b) / (np.asarray(a)[..., None, None] ** n)
 
 
 def norm_quadratics_batch(c_monic: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

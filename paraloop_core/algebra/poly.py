@@ -188,12 +188,15 @@ def mod_quadratic(c: np.ndarray, m: np.ndarray) -> np.ndarray:
     return rem[..., :2, :]
 
 
-def reparametrize(c: np.ndarray, a: float, b: float) -> np.ndarray:
-    """``C(a t + b)`` (same motion, new parameter); ``a != 0``."""
-    if a == 0:
+def reparametrize(c: np.ndarray, a: float | np.ndarray, b: float | np.ndarray) -> np.ndarray:
+    """``C(a t + b)`` (same motion, new parameter); ``a != 0``, scalars or arrays broadcasting
+    against ``c``'s batch shape ``(...)``."""
+    a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
+    if np.any(a == 0):
         raise ValueError("reparametrization needs a != 0")
     n = c.shape[-2] - 1
-    out = np.zeros_like(c)
+    out = np.zeros(np.broadcast_shapes(c.shape, a.shape + (1, 1)))
+    a, b = a[..., None], b[..., None]
     # (a t + b)^k expanded by the binomial theorem.
     from math import comb
 
