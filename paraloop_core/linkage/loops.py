@@ -112,24 +112,25 @@ def joint_polys(joint_factors: np.ndarray) -> np.ndarray:
     return np.concatenate([lin[..., :3, :, :], poly.conj(lin[..., 3:, :, :])], axis=-3)
 
 
-def relative_motion(joint_factors: np.ndarray, i: int, j: int) -> np.ndarray:
-    """Motion polynomial ``R_ij`` ``(..., k+1, 8)`` of link j in link i's home frame (base
-    coordinates at t = inf), up to a real factor; degree ``k = min(|j-i|, 6-|j-i|)``.
-
-    ``R_ij ∝ T_i ... T_{j-1}`` (indices mod 6) ``∝ conj(T_j ... T_{i-1})``.
-    """
+def relative_chain(joint_factors: np.ndarray, i: int, j: int) -> np.ndarray:
+    """Linear factors ``(..., k, 2, 8)`` (ascending) of the motion of link j in link i's home
+    frame: ``R_ij = L_0 L_1 ... L_{k-1}``, ``k = min(|j-i|, 6-|j-i|)``. Each ``L_m`` is a
+    rotation about a fixed line of the base frame (a joint axis at home)."""
     if not (0 <= i < 6 and 0 <= j < 6) or i == j:
         raise ValueError(f"links must be distinct indices in 0..5, got {i}, {j}")
     tp = joint_polys(joint_factors)
     fwd = (j - i) % 6
-    if fwd <= 3:
-        idx = [(i + s) % 6 for s in range(fwd)]
-        out = tp[..., idx[0], :, :]
-        for s in idx[1:]:
-            out = poly.mul(out, tp[..., s, :, :])
-        return out
-    idx = [(j + s) % 6 for s in range(6 - fwd)]
-    out = tp[..., idx[0], :, :]
-    for s in idx[1:]:
-        out = poly.mul(out, tp[..., s, :, :])
-    return poly.conj(out)
+    if fwd <= 3:  # R_ij ∝ T_i ... T_{j-1}
+        return tp[..., [(i + s) % 6 for s in range(fwd)], :, :]
+    # R_ij ∝ conj(T_j ... T_{i-1}) = conj(T_{i-1}) ... conj(T_j)
+    return poly.conj(tp[..., [(j + s) % 6 for s in reversed(range(6 - fwd))], :, :])
+
+
+def relative_motion(joint_factors: np.ndarray, i: int, j: int) -> np.ndarray:
+    """Motion polynomial ``R_ij`` ``(..., k+1, 8)`` of link j in link i's home frame (base
+    coordinates at t = inf), up to a real factor: the product of :func:`relative_chain`."""
+    chain = relative_chain(joint_factors, i, j)
+    out = chain[..., 0, :, :]
+    for s in range(1, chain.shape[-3]):
+        out = poly.mul(out, chain[..., s, :, :])
+    return out

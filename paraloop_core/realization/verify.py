@@ -9,11 +9,17 @@ re-checked here by branch and bound with rigorous displacement bounds:
   roots gather round ``s = i``), and the projective line is covered by two charts,
   ``s in [-1, 1]`` and ``w = 1/s in [-1, 1]`` (the reversed polynomial; ``w = 0`` is
   ``t = inf``), each split into cells ``[c - r, c + r]``.
-* A moving point is ``x(s) = X(s) / N(s)`` with polynomials ``X`` (vector) and ``N = |P|^2``.
-  With their exact Taylor coefficients at the cell centre, for ``|delta| <= r``:
-  ``|x(c + delta) - x(c)| <= sum_n |X_n N_0 - X_0 N_n| r^n / (N_0 (N_0 - sum_n |N_n| r^n))``
-  (``n >= 1``; valid while the bracket is positive). A rigid motion is affine in the point, so
-  the moving segment's Hausdorff displacement is at most its endpoints' larger one, and the
+* The moving link's motion is the product of its joint factors, ``L_0(t) ... L_{k-1}(t)``
+  (:func:`loops.relative_chain`), each a rotation about a fixed joint axis whose half angle is
+  the argument of a point moving on a line in the quaternion plane ``span(1, axis)``. Over a
+  cell the half angle of factor m sweeps ``delta_m``: the angle between its (primal) values at
+  the centre and an end (monotone from the centre: a line seen from the origin). Telescoping
+  the product, a moving point ``y`` is displaced by at most
+  ``sum_m 2 sin(min(delta_m, pi/2)) * dist(y_m(c), axis_m)`` with ``y_m`` the point carried
+  by the inner factors at the centre. The factored form stays exact where the expanded
+  polynomial loses every digit: near a fast turn (a norm root close to the real axis) ``|P|^2``
+  cancels, while each factor is just a rotation. A rigid motion is affine in the point, so the
+  moving segment's Hausdorff displacement is at most its endpoints' larger one, and the
   segment distance changes by at most that much on the cell: ``d(c) - m`` is a lower bound.
 * Cells whose lower bound is not within ``tol + RELATIVE * best`` of the best distance found
   are halved (far pairs need no more absolute precision than near ones; a flat minimum, e.g.
@@ -28,7 +34,6 @@ then ``lower`` is still sound and the caller must treat a pair it cannot clear a
 from __future__ import annotations
 
 from dataclasses import dataclass
-from math import comb
 
 import numpy as np
 
@@ -36,7 +41,6 @@ from paraloop_core.algebra import dq, factor, poly
 from paraloop_core.linkage import loops
 from paraloop_core.realization.clearance import segment_distance
 
-_EPS = np.finfo(float).eps
 #: Wanted gap ``upper - lower`` relative to the pair's distance (on top of the absolute tol).
 RELATIVE = 1e-4
 #: Cells per chart at the start, the most cells one pair may visit, and halving rounds.
@@ -82,13 +86,16 @@ def pair_bounds(joint_factors: np.ndarray, fixed: np.ndarray, moving: np.ndarray
     a, b, _ = factor.conditioning_batch(loops.relative_motion(jf, 0, 3))
     a, b = float(a), float(b)
     out = np.array([np.inf, np.inf, -np.inf, 0.0])[:, None].repeat(n, axis=1)
-    cache: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}
+    cache: dict[tuple[int, int], tuple[_Chain, _Chain]] = {}
     for row in range(n):  # a few dozen pairs; each one is vectorized over its cells
         key = (int(links[row, 0]), int(links[row, 1]))
         if key not in cache:
-            c = poly.reparametrize(loops.relative_motion(jf, *key), a, b)
-            c = c / np.abs(c[..., :4]).max()
-            cache[key] = (c, c[::-1])  # chart s and chart w = 1/s (reversed coefficients)
+            chain = loops.relative_chain(jf, *key)
+            lin = poly.reparametrize(chain, a, b)
+            lin = lin / np.abs(lin[..., :4]).max(axis=(-2, -1), keepdims=True)
+            axes = loops.factor_axes(chain[:, 0])
+            # chart s and chart w = 1/s (w L(1/w): reversed coefficients)
+            cache[key] = (_Chain(lin, axes), _Chain(lin[:, ::-1], axes))
         h = hints[row][~np.isnan(hints[row])]
         s_hint = np.where(np.isinf(h), np.inf, (h - b) / a)
         upper, s_best, lower, cells = _one_pair(cache[key], fixed[row], moving[row], tol,
@@ -99,10 +106,9 @@ def pair_bounds(joint_factors: np.ndarray, fixed: np.ndarray, moving: np.ndarray
     return PairBounds(out[0], out[1], out[2], out[3].astype(int))
 
 
-def _one_pair(charts: tuple[np.ndarray, np.ndarray], fixed: np.ndarray, moving: np.ndarray,
+def _one_pair(charts: tuple[_Chain, _Chain], fixed: np.ndarray, moving: np.ndarray,
               tol: float, s_hint: np.ndarray, need: float) -> tuple[float, float, float, int]:
     """Branch and bound of one pair over both charts: ``(upper, s, lower, cells)``."""
-    maps = [_point_maps(c, moving) for c in charts]
     # the exact candidates (hints) only seed the best distance: cells prove the bound
     inner = np.abs(s_hint) <= 1
     w_hint = np.where(np.isinf(s_hint), 0.0, 1.0 / np.where(inner, 1.0, s_hint))
@@ -110,7 +116,7 @@ def _one_pair(charts: tuple[np.ndarray, np.ndarray], fixed: np.ndarray, moving: 
     best, best_s = np.inf, np.inf
     for chart, x in seeds:
         if x.size:
-            d, _ = _cells(maps[chart], fixed, x, np.zeros_like(x))
+            d, _ = _cells(charts[chart], fixed, moving, x, np.zeros_like(x))
             k = int(np.argmin(d))
             if d[k] < best:
                 best, best_s = float(d[k]), _to_s(chart, float(x[k]))
@@ -122,7 +128,7 @@ def _one_pair(charts: tuple[np.ndarray, np.ndarray], fixed: np.ndarray, moving: 
         evaluated = []
         for chart, x, r in front:
             if x.size:
-                d, m = _cells(maps[chart], fixed, x, r)
+                d, m = _cells(charts[chart], fixed, moving, x, r)
                 low = np.full_like(d, -np.inf)
                 np.subtract(d, m, out=low, where=np.isfinite(m) & np.isfinite(d))
                 evaluated.append((chart, x, r, d, low))
@@ -153,65 +159,49 @@ def _to_s(chart: int, x: float) -> float:
     return x if chart == 0 else (np.inf if x == 0 else 1.0 / x)
 
 
-def _point_maps(c: np.ndarray, moving: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Numerators ``X`` ``(2, 3, D+1)`` of the two moved endpoints and ``N`` ``(D+1,)``
-    (ascending, ``D = 2k``): ``R(s)(x) = X(s) / N(s)`` (point action of :mod:`dq`)."""
-    p, d = c[:, :4], c[:, 4:]
-    k = len(c) - 1
-    xq = np.concatenate([np.zeros((2, 1)), moving], axis=1)  # (2, 4)
-    pc = dq.qconj(p)
-    # term (i, j) of P x P~ + 2 D P~ contributes to power i + j
-    pxp = dq.qmul(dq.qmul(p[None, :, None], xq[:, None, None]), pc[None, None, :])  # (2,K,K,4)
-    dpc = 2.0 * dq.qmul(d[:, None], pc[None, :])  # (K, K, 4)
-    nn = np.sum(p[:, None] * p[None, :], axis=-1)  # (K, K)
-    x_num = np.zeros((2, 3, 2 * k + 1))
-    norm = np.zeros(2 * k + 1)
-    for i in range(k + 1):
-        for j in range(k + 1):
-            x_num[:, :, i + j] += (pxp[:, i, j] + dpc[i, j])[:, 1:]
-            norm[i + j] += nn[i, j]
-    return x_num, norm
+@dataclass(frozen=True)
+class _Chain:
+    """One chart of a relative motion: linear factors ``(k, 2, 8)`` (ascending in the chart
+    variable, the motion is their product) and their unit Plücker axes ``(k, 6)``."""
+
+    lin: np.ndarray
+    axes: np.ndarray
 
 
-def _taylor(coef: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """Taylor coefficients ``(C, ..., D+1)`` at centres ``x`` ``(C,)`` of polynomials
-    ``coef`` ``(..., D+1)`` (ascending): ``p(x + h) = sum_n T_n h^n``."""
-    deg = coef.shape[-1] - 1
-    shift = np.zeros((len(x), deg + 1, deg + 1))
-    for m in range(deg + 1):
-        for n in range(m + 1):
-            shift[:, n, m] = comb(m, n) * x ** (m - n)
-    return np.einsum("cnm,...m->c...n", shift, coef)
+def _half_angle(q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
+    """Angle ``(...)`` between unit quaternions ``(..., 4)`` of one factor (both in its plane
+    ``span(1, axis)``, so ``q1 q0~`` is exact to rounding): half the rotation between them."""
+    rel = dq.qmul(q1, dq.qconj(q0))
+    return np.arctan2(np.linalg.norm(rel[..., 1:], axis=-1), rel[..., 0])
 
 
-def _cells(maps: tuple[np.ndarray, np.ndarray], fixed: np.ndarray, x: np.ndarray,
+def _cells(chain: _Chain, fixed: np.ndarray, moving: np.ndarray, x: np.ndarray,
            r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Distances at the cell centres ``x`` ``(C,)`` and displacement bounds ``(C,)`` over the
-    cells of radii ``r`` (``inf`` where the norm may vanish on the cell)."""
-    x_num, norm = maps
-    tx = _taylor(x_num, x)  # (C, 2, 3, D+1)
-    tn = _taylor(norm, x)  # (C, D+1)
-    n0 = tn[:, 0]
-    # float64 evaluation error of the centre values (Horner-type sums of |terms|)
-    mono = np.abs(x[:, None]) ** np.arange(norm.size)  # (C, D+1)
-    err_n = 4 * _EPS * norm.size * (mono @ np.abs(norm))
-    err_x = 4 * _EPS * norm.size * np.einsum("cd,pkd->cpk", mono, np.abs(x_num))
-    good = n0 > 1e6 * err_n  # the centre point is known to ~1e-6 relative or better
-    n_safe = np.where(good, n0, 1.0)
-    pts = tx[..., 0] / n_safe[:, None, None]
-    # bound on the error of the evaluated points (numerator and norm errors)
-    err_p = (np.linalg.norm(err_x, axis=-1).max(axis=-1)
-             + np.abs(pts).max(axis=(1, 2)) * err_n) / (n_safe - np.where(good, err_n, 0.0))
-    d = np.where(good, segment_distance(fixed[0], fixed[1], pts[:, 0], pts[:, 1]), np.inf)
-    powers = r[:, None] ** np.arange(1, tn.shape[1])  # (C, D)
-    cross = tx[..., 1:] * n0[:, None, None, None] - tx[..., :1] * tn[:, None, None, 1:]
-    num = np.einsum("cpd,cd->cp", np.linalg.norm(cross, axis=2), powers).max(axis=1)
-    n_lo = n0 - np.einsum("cd,cd->c", np.abs(tn[:, 1:]), powers)
-    ok = good & (n_lo > 0)
-    m = np.where(ok, num / np.where(ok, n0 * n_lo, 1.0), np.inf)
-    # the centre distance may be off by the point error (and by segment_distance's round-off)
-    slack = 2 * err_p + 1e-13 * (np.abs(pts).max(axis=(1, 2)) + np.abs(fixed).max())
-    return d + np.where(good, err_p, 0.0), m + slack
+    """Distances at the cell centres ``x`` ``(C,)`` (upper, rounding included) and displacement
+    bounds ``(C,)`` over the cells of radii ``r`` (module docstring; ``inf`` where a factor
+    degenerates, which a generic motion never does)."""
+    u = np.stack([x, x - r, x + r])  # (3, C)
+    q = chain.lin[:, None, None, 0] + chain.lin[:, None, None, 1] * u[None, :, :, None]
+    pn = np.linalg.norm(q[..., :4], axis=-1, keepdims=True)  # (k, 3, C, 1)
+    ok = np.all(pn[..., 0] > 1e-150, axis=(0, 1))
+    q = q / np.where(pn > 1e-150, pn, 1.0)
+    centre = q[:, 0]  # (k, C, 8)
+    delta = np.maximum(_half_angle(centre[..., :4], q[:, 1, :, :4]),
+                       _half_angle(centre[..., :4], q[:, 2, :, :4]))
+    chord = 2.0 * np.sin(np.minimum(delta, np.pi / 2))  # (k, C)
+    line_dir, moment = chain.axes[:, :3], chain.axes[:, 3:]
+    y = np.broadcast_to(moving, (len(x), 2, 3))
+    disp = np.zeros((len(x), 2))
+    for m in reversed(range(len(chain.lin))):  # innermost factor first (k <= 3)
+        rho = np.linalg.norm(np.cross(y, line_dir[m]) - moment[m], axis=-1)  # (C, 2)
+        disp += chord[m][:, None] * rho
+        y = dq.transform_points(centre[m][:, None, :], y)
+    # rounding of the composed points and of the chords: far below 1e-12 of the frame's size
+    size = np.abs(fixed).max() + np.abs(moving).max() + 2.0 * np.abs(moment).sum()
+    slack = 1e-12 * size * (1.0 + disp.max(axis=1) / max(size, 1e-300))
+    d = segment_distance(fixed[0], fixed[1], y[:, 0], y[:, 1])
+    return (np.where(ok, d + slack, np.inf),
+            np.where(ok, disp.max(axis=1) + 2.0 * slack, np.inf))
 
 
 #: The six pairs of consecutive bars ``(S_iE_i, S_{i+1}E_{i+1})`` ``(6, 4)`` (edge, edge, link,
