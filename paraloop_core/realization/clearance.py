@@ -9,6 +9,12 @@ critical points and ``t = inf`` (extra candidates are harmless: each is a real d
 
 Scalar polynomials are arrays ``(..., n)`` with ascending coefficients; vector polynomials are
 ``(..., 3, n)``. Everything is batched over a leading item axis.
+
+Conditioning: the polynomials of :class:`MotionData` are in a parameter ``s`` with
+``t = a s + b`` (:class:`PairMotions`: the loop's :func:`factor.conditioning_batch`, norm roots
+round ``s = i``). A motion whose norm roots lie far apart (a fast and a slow turn) has critical
+polynomials whose roots in ``t`` float64 cannot separate (a contact at t = 5842 was missed);
+in ``s`` their coefficients are balanced. Every ``t`` taken or returned here is the design's.
 """
 
 from __future__ import annotations
@@ -19,13 +25,14 @@ from functools import cache, cached_property
 
 import numpy as np
 
-from paraloop_core.algebra import dq, poly
+from paraloop_core.algebra import dq, factor, poly
 from paraloop_core.linkage import loops
 from paraloop_core.tolerance import TOL
 
-#: Samples of the cycle for cheap upper bounds (true distances; t = inf included).
+#: Samples of the cycle for cheap upper bounds (true distances; s = inf included), uniform in
+#: ``u`` of the conditioned parameter: ``s = poly.param_to_t(u)``.
 SAMPLE_U = np.linspace(0.0, 1.0, 48, endpoint=False)
-SAMPLE_T = poly.param_to_t(SAMPLE_U)
+SAMPLE_S = poly.param_to_t(SAMPLE_U)
 
 
 @cache
@@ -97,22 +104,37 @@ class MotionData:
 
     ``norm`` ``(M, n)``: ``N = |R_P|^2`` (n = 2k+1); ``lines`` ``(M, 6, 6, n)``: Plücker
     ``(l, m)`` -> numerator of ``R (l + eps m) R~`` (scaled by N); ``points`` ``(M, 3, 4, n)``:
-    ``[x, 1]`` -> numerator ``X(t)`` of ``R(t)(x) = X / N``.
+    ``[x, 1]`` -> numerator ``X(s)`` of ``R(s)(x) = X / N``; all in ``s`` with the design's
+    ``t = a s + b`` (``a > 0``).
     """
 
     motions: np.ndarray
     norm: np.ndarray
     lines: np.ndarray
     points: np.ndarray
+    a: float = 1.0
+    b: float = 0.0
+
+    def to_s(self, t: np.ndarray) -> np.ndarray:
+        """Parameter ``s`` of design parameters ``t`` (infinities kept)."""
+        return (np.asarray(t, dtype=np.float64) - self.b) / self.a
+
+    def to_t(self, s: np.ndarray) -> np.ndarray:
+        """Design parameters ``t`` of ``s`` (infinities kept)."""
+        return self.a * np.asarray(s, dtype=np.float64) + self.b
 
     @property
     def degree(self) -> int:
         return self.motions.shape[-2] - 1
 
 
-def motion_data(motions: np.ndarray) -> MotionData:
-    """Build :class:`MotionData` from motion polynomials ``(M, k+1, 8)`` of one degree k >= 1."""
-    r = np.asarray(motions, dtype=np.float64)
+def motion_data(motions: np.ndarray, a: float = 1.0, b: float = 0.0) -> MotionData:
+    """Build :class:`MotionData` from motion polynomials ``(M, k+1, 8)`` of one degree k >= 1
+    in the design's t, worked in ``s`` with ``t = a s + b`` (``a > 0``)."""
+    if not (np.isfinite(a) and a > 0 and np.isfinite(b)):
+        raise ValueError(f"the parameter map t = a s + b needs finite a > 0 and b, got {a}, {b}")
+    r = poly.reparametrize(np.asarray(motions, dtype=np.float64), a, b)
+    r = r / np.abs(r).max(axis=(-2, -1), keepdims=True)  # a real factor: the same motion
     rs = r[:, None]  # (M, 1, k+1, 8) against 6 or 4 basis elements
     eye = np.eye(8)
     basis_lines = eye[[1, 2, 3, 5, 6, 7]][:, None, :]  # (6, 1, 8) pure l or eps m
@@ -127,39 +149,43 @@ def motion_data(motions: np.ndarray) -> MotionData:
         poly.norm_poly(r),
         np.transpose(lines, (0, 3, 1, 2)),
         np.transpose(acted, (0, 3, 1, 2)),
+        float(a),
+        float(b),
     )
 
 
 class PairMotions:
     """Relative motions ``R_ab`` (:func:`loops.relative_motion`) of the link pairs ``keys``,
     grouped by degree as :class:`MotionData` (``groups``; pairs in first-seen order of ``keys``),
-    ``where[(a, b)] = (degree, index)``, and their rotations/translations at :data:`SAMPLE_T`
-    (``rot``, ``trans``)."""
+    ``where[(a, b)] = (degree, index)``, and their rotations/translations at :data:`SAMPLE_S`
+    (``rot``, ``trans``). All in the loop's conditioned parameter (module docstring)."""
 
     def __init__(self, jf: np.ndarray, keys: Iterable[tuple[int, int]]):
+        a, b, _ = factor.conditioning_batch(loops.relative_motion(jf, 0, 3))
         polys = {k: loops.relative_motion(jf, *k) for k in keys if k[0] != k[1]}
         self.where: dict[tuple[int, int], tuple[int, int]] = {}
         self.groups: dict[int, MotionData] = {}
         for deg in sorted({m.shape[0] - 1 for m in polys.values()}):
             members = [k for k, m in polys.items() if m.shape[0] - 1 == deg]
-            self.groups[deg] = motion_data(np.stack([polys[k] for k in members]))
+            self.groups[deg] = motion_data(np.stack([polys[k] for k in members]), float(a),
+                                           float(b))
             self.where.update({k: (deg, n) for n, k in enumerate(members)})
 
     # Sampled rigid maps for cheap upper bounds (true distances at 48 times); computed on first
     # use only: the thin collision check never needs them.
     @cached_property
     def _sampled(self) -> dict[int, np.ndarray]:
-        return {deg: poly.evaluate_pose(md.motions[:, None], SAMPLE_T)
+        return {deg: poly.evaluate_pose(md.motions[:, None], SAMPLE_S)
                 for deg, md in self.groups.items()}
 
     @cached_property
     def rot(self) -> dict[int, np.ndarray]:
-        """Rotation matrices ``(M, T, 3, 3)`` per degree at :data:`SAMPLE_T`."""
+        """Rotation matrices ``(M, T, 3, 3)`` per degree at :data:`SAMPLE_S`."""
         return {deg: dq.rotation_matrix(q) for deg, q in self._sampled.items()}
 
     @cached_property
     def trans(self) -> dict[int, np.ndarray]:
-        """Translations ``(M, T, 3)`` per degree at :data:`SAMPLE_T`."""
+        """Translations ``(M, T, 3)`` per degree at :data:`SAMPLE_S`."""
         return {deg: dq.translation_of(q) for deg, q in self._sampled.items()}
 
     def data(self, keys: Iterable[tuple[int, int]]) -> list[tuple[MotionData, int]]:
@@ -192,19 +218,27 @@ def moved_line(md: MotionData, idx: np.ndarray, seg: np.ndarray) -> np.ndarray:
 
 
 def moving_segments(md: MotionData, idx: np.ndarray, seg: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """Moving segments ``(B, 2, 3)`` at times ``t`` ``(B, T)`` (inf allowed) -> ``(B, T, 2, 3)``.
+    """Moving segments ``(B, 2, 3)`` at the design's times ``t`` ``(B, T)`` (inf allowed) ->
+    ``(B, T, 2, 3)``."""
+    return segments_at(md, idx, seg, md.to_s(t))
 
-    Evaluates ``X(t) / N(t)``; for ``|t| > 1`` both in ``1/t`` (reversed Horner), so large t and
-    t = inf are exact and overflow-free.
+
+def segments_at(md: MotionData, idx: np.ndarray, seg: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """:func:`moving_segments` at parameters ``s`` of ``md`` (NaN where the pose vanishes).
+
+    Evaluates the pose ``R(s)`` (degree k, :func:`poly.evaluate_pose`: exact at inf) and acts
+    on the points, not ``X(s) / N(s)``: near a fast turn ``N = |P|^2`` has twice the
+    cancellation of ``P`` (1e-18 of its coefficients, i.e. all digits lost, where ``P`` keeps
+    half of them).
     """
-    xh = np.concatenate([seg, np.ones(seg.shape[:-1] + (1,))], axis=-1)
-    coeff = np.einsum("bcjn,bej->bnec", md.points[idx], xh)[:, None]  # (B, 1, n, 2, 3)
-    x = poly.evaluate_scaled(coeff, t, 2)
-    return x / poly.evaluate_scaled(md.norm[idx][:, None], t, 0)[..., None, None]
+    pose = poly.evaluate_pose(md.motions[idx][:, None], s)  # (B, T, 8)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return dq.transform_points(pose[:, :, None, :], seg[:, None])
 
 
 def _critical_times(md: MotionData, idx: np.ndarray, fixed: np.ndarray, moving: np.ndarray):
-    """Real parts of the critical points of the nine Lumelsky cases, ``(B, K)`` (NaN = none)."""
+    """Real parts of the critical points (in ``s``) of the nine Lumelsky cases, ``(B, K)``
+    (NaN = none)."""
     n_items = len(idx)
     nrm = md.norm[idx]
     dn = pder(nrm)
@@ -243,7 +277,7 @@ def _critical_times(md: MotionData, idx: np.ndarray, fixed: np.ndarray, moving: 
 
 
 def with_home(roots: np.ndarray) -> np.ndarray:
-    """Candidate times ``(B, K+1)``: t = inf first, then the roots (NaN = at inf)."""
+    """Candidate parameters ``(B, K+1)``: inf (home) first, then the roots (NaN = at inf)."""
     return np.concatenate([np.full((len(roots), 1), np.inf),
                            np.where(np.isnan(roots), np.inf, roots)], axis=1)
 
@@ -258,11 +292,11 @@ def min_distance_batch(
     ``t = inf`` where the minimum is attained at the home configuration.
     """
     cand = with_home(_critical_times(md, idx, fixed, moving))
-    seg = moving_segments(md, idx, moving, cand)
+    seg = segments_at(md, idx, moving, cand)
     dist = segment_distance(fixed[:, None, 0], fixed[:, None, 1], seg[..., 0, :], seg[..., 1, :])
     best = np.argmin(dist, axis=1)
     rows = np.arange(len(idx))
-    return dist[rows, best], cand[rows, best]
+    return dist[rows, best], md.to_t(cand[rows, best])
 
 
 def min_distance(

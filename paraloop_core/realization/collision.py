@@ -20,9 +20,9 @@ from paraloop_core.realization.clearance import (
     PairMotions,
     min_distance_batch,
     moved_line,
-    moving_segments,
     plucker,
     segment_distance,
+    segments_at,
     with_home,
 )
 from paraloop_core.tolerance import TOL
@@ -48,18 +48,18 @@ def pair_collisions(
     lin = np.abs(md.lines).max(axis=(1, 2, 3))[idx]
     size = lin * np.linalg.norm(pa, axis=1) * np.linalg.norm(plucker(moving), axis=1)
     always = np.abs(om).max(axis=1) <= TOL.zero * size
-    cand = with_home(poly.real_poly_roots(om, rtol=TOL.zero).real)
-    seg = moving_segments(md, idx, moving, cand)
+    cand = with_home(poly.real_poly_roots(om, rtol=TOL.zero).real)  # in md's s
+    seg = segments_at(md, idx, moving, cand)
     dist = segment_distance(fixed[:, None, 0], fixed[:, None, 1], seg[..., 0, :], seg[..., 1, :])
     if np.any(always):  # rare: the lines meet for every t; use the exact minimum distance
         dmin, tmin = min_distance_batch(md, idx[always], fixed[always], moving[always])
-        dist[always, 0], cand[always, 0] = dmin, tmin
+        dist[always, 0], cand[always, 0] = dmin, md.to_s(tmin)
         dist[always, 1:] = np.inf
     length = np.linalg.norm(la, axis=1) + np.linalg.norm(moving[:, 1] - moving[:, 0], axis=1)
     best = np.argmin(dist, axis=1)
     rows = np.arange(n_items)
     hit = dist[rows, best] <= TOL.residual * length
-    return hit, np.where(hit, cand[rows, best], np.nan)
+    return hit, np.where(hit, md.to_t(cand[rows, best]), np.nan)
 
 
 def thin_pair_motions(joint_factors: np.ndarray) -> list[tuple[MotionData, int]]:

@@ -36,6 +36,7 @@ from paraloop_core.realization.clearance import (
     pder,
     pmul,
     segment_distance,
+    segments_at,
 )
 from paraloop_core.realization.collision import pair_collisions
 from paraloop_core.tolerance import TOL
@@ -89,7 +90,7 @@ def _plane_polys(md: MotionData, idx: np.ndarray, tri: np.ndarray, x: np.ndarray
 
 
 def _times(roots: np.ndarray) -> np.ndarray:
-    """Candidate times ``(B, K+1)``: t = inf first, then real parts (NaN -> inf)."""
+    """Candidate parameters ``(B, K+1)`` (md's s): inf first, then real parts (NaN -> inf)."""
     r = roots.real.reshape(len(roots), -1)
     return np.concatenate([np.full((len(r), 1), np.inf), np.where(np.isnan(r), np.inf, r)], 1)
 
@@ -102,7 +103,7 @@ def face_segment_hits(md: MotionData, idx: np.ndarray, tri: np.ndarray, seg: np.
     g, _ = _plane_polys(md, np.repeat(idx, 2), np.repeat(tri, 2, axis=0), seg.reshape(-1, 3))
     roots = poly.real_poly_roots(g, rtol=TOL.zero).real.reshape(nb, 2, -1)
     cand = np.where(np.isnan(roots), np.inf, roots)  # (B, 2, K): per endpoint
-    moved = moving_segments(md, idx, seg, cand.reshape(nb, -1)).reshape(nb, 2, -1, 2, 3)
+    moved = segments_at(md, idx, seg, cand.reshape(nb, -1)).reshape(nb, 2, -1, 2, 3)
     x = np.stack([moved[:, 0, :, 0], moved[:, 1, :, 1]], axis=1)  # each endpoint at its roots
     a, b, c = (tri[:, None, None, v] for v in range(3))
     n = np.cross(b - a, c - a)
@@ -124,11 +125,11 @@ def vertex_face_min_distance(md: MotionData, idx: np.ndarray, tri: np.ndarray, x
     cand = _times(np.concatenate([poly.real_poly_roots(crit, rtol=TOL.zero),
                                   poly.real_poly_roots(g, rtol=TOL.zero)], axis=1))
     xx = np.repeat(x[:, None], 2, axis=1)
-    moved = moving_segments(md, idx, xx, cand)[..., 0, :]
+    moved = segments_at(md, idx, xx, cand)[..., 0, :]
     dist = point_triangle_distance(moved, tri[:, None])
     best = np.argmin(dist, axis=1)
     rows = np.arange(len(idx))
-    return dist[rows, best], cand[rows, best]
+    return dist[rows, best], md.to_t(cand[rows, best])
 
 
 def sphere_bound(md: MotionData, idx: np.ndarray, vertices: np.ndarray, seg: np.ndarray

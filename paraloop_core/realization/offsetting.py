@@ -26,8 +26,8 @@ from paraloop_core.realization.clearance import (
     MotionData,
     PairMotions,
     min_distance_batch,
-    moving_segments,
     segment_distance,
+    segments_at,
 )
 from paraloop_core.realization.collision import THIN_PAIRS
 from paraloop_core.realization.polyline import axis_frames
@@ -196,12 +196,12 @@ class OffsetSearch:
 
     def _distance_at(self, pair, fixed, moving, u) -> np.ndarray:
         """Distance ``(I,)`` of item segments at per-item parameters ``u`` (periodic)."""
-        t = poly.param_to_t(np.mod(u, 1.0))[:, None]
+        s = poly.param_to_t(np.mod(u, 1.0))[:, None]  # u of the conditioned s (SAMPLE_U)
         out = np.empty(len(pair))
         for k, md in self.lp.groups.items():
             sel = self.lp.pair_group[pair] == k
             if np.any(sel):
-                seg = moving_segments(md, self.lp.pair_index[pair[sel]], moving[sel], t[sel])
+                seg = segments_at(md, self.lp.pair_index[pair[sel]], moving[sel], s[sel])
                 out[sel] = segment_distance(fixed[sel, 0], fixed[sel, 1], seg[:, 0, 0],
                                             seg[:, 0, 1])
         return out
