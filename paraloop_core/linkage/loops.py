@@ -69,6 +69,13 @@ def factor_axes(h: np.ndarray) -> np.ndarray:
     return np.concatenate([p, d], axis=-1) / n
 
 
+def norm_roots(joint_factors: np.ndarray) -> np.ndarray:
+    """Upper norm roots ``(..., 3)`` (complex) of the loop's cubic, read off its first three
+    joint factors: ``t - h`` has norm ``(t - h_0)^2 + |h_vec|^2``, root ``h_0 + i |h_vec|``."""
+    h = np.asarray(joint_factors, dtype=np.float64)[..., :3, :]
+    return h[..., 0] + 1j * np.linalg.norm(h[..., 1:4], axis=-1)
+
+
 def _linear_pose(h: np.ndarray, t: np.ndarray) -> np.ndarray:
     """Homogeneous pose of ``t - h`` at ``t`` ``(T,)``: ``(..., T, 8)``; identity at inf."""
     return poly.evaluate_pose(poly.linear(h)[..., None, :, :], t)

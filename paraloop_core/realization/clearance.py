@@ -11,15 +11,16 @@ Scalar polynomials are arrays ``(..., n)`` with ascending coefficients; vector p
 ``(..., 3, n)``. Everything is batched over a leading item axis.
 
 Conditioning: the polynomials of :class:`MotionData` are in a parameter ``s`` with
-``t = a s + b`` (:class:`PairMotions`: the loop's :func:`factor.conditioning_batch`, norm roots
-round ``s = i``). A motion whose norm roots lie far apart (a fast and a slow turn) has critical
-polynomials whose roots in ``t`` float64 cannot separate (a contact at t = 5842 was missed);
-in ``s`` their coefficients are balanced. Every ``t`` taken or returned here is the design's.
+``t = a s + b`` (:func:`charts`: the norm roots gather round ``s = i``). A motion whose norm
+roots lie far apart in the hyperbolic metric (a fast and a slow turn) has critical polynomials
+whose roots no single parameter resolves (a contact at t = 5842 was missed in t, another one
+in the centred s): each far root gets a chart of its own (``extra``) whose critical points are
+added to the candidates. Every ``t`` taken or returned here is the design's.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from functools import cache, cached_property
 
@@ -98,6 +99,10 @@ def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.einsum("...i,...i->...", a, b)
 
 
+#: A parameter map ``t = a s + b`` as ``(a, b)``.
+Chart = tuple[float, float]
+
+
 @dataclass(frozen=True)
 class MotionData:
     """Polynomial maps of relative motions ``R`` ``(M, k+1, 8)`` of one common degree k.
@@ -114,6 +119,7 @@ class MotionData:
     points: np.ndarray
     a: float = 1.0
     b: float = 0.0
+    extra: tuple[MotionData, ...] = ()
 
     def to_s(self, t: np.ndarray) -> np.ndarray:
         """Parameter ``s`` of design parameters ``t`` (infinities kept)."""
@@ -128,11 +134,14 @@ class MotionData:
         return self.motions.shape[-2] - 1
 
 
-def motion_data(motions: np.ndarray, a: float = 1.0, b: float = 0.0) -> MotionData:
+def motion_data(motions: np.ndarray, a: float = 1.0, b: float = 0.0,
+                extra: tuple[Chart, ...] = ()) -> MotionData:
     """Build :class:`MotionData` from motion polynomials ``(M, k+1, 8)`` of one degree k >= 1
-    in the design's t, worked in ``s`` with ``t = a s + b`` (``a > 0``)."""
+    in the design's t, worked in ``s`` with ``t = a s + b`` (``a > 0``); ``extra`` charts
+    ``(a, b)`` add critical points (module docstring)."""
     if not (np.isfinite(a) and a > 0 and np.isfinite(b)):
         raise ValueError(f"the parameter map t = a s + b needs finite a > 0 and b, got {a}, {b}")
+    more = tuple(motion_data(motions, ea, eb) for ea, eb in extra)
     r = poly.reparametrize(np.asarray(motions, dtype=np.float64), a, b)
     r = r / np.abs(r).max(axis=(-2, -1), keepdims=True)  # a real factor: the same motion
     rs = r[:, None]  # (M, 1, k+1, 8) against 6 or 4 basis elements
@@ -151,7 +160,29 @@ def motion_data(motions: np.ndarray, a: float = 1.0, b: float = 0.0) -> MotionDa
         np.transpose(acted, (0, 3, 1, 2)),
         float(a),
         float(b),
+        more,
     )
+
+
+#: ``cosh`` of the hyperbolic distance from the centre beyond which a norm root gets a chart.
+FAR_ROOT = 10.0
+
+
+def charts(joint_factors: np.ndarray) -> tuple[Chart, tuple[Chart, ...]]:
+    """Parameter maps ``t = a s + b`` of a loop ``(6, 8)``: ``(a, b)`` centring its norm roots
+    at ``s = i`` (minimax in the hyperbolic metric, :func:`factor.hyperbolic_center`) and one
+    ``(Im z, Re z)`` per root ``z`` farther than :data:`FAR_ROOT`."""
+    z = loops.norm_roots(joint_factors)
+    b, a = (float(v) for v in factor.hyperbolic_center(z))
+    cosh = 1.0 + np.abs(z - (b + 1j * a)) ** 2 / (2.0 * a * z.imag)
+    return (a, b), tuple((float(r.imag), float(r.real)) for r in z[cosh > FAR_ROOT])
+
+
+def chart_roots(md: MotionData, roots_in: Callable[[MotionData], np.ndarray]) -> np.ndarray:
+    """``roots_in(md)`` ``(B, K)`` (parameters of ``md``) joined by those of its ``extra``
+    charts mapped into ``md``'s s: ``(B, K (1 + len(extra)))``."""
+    return np.concatenate([roots_in(md)] + [md.to_s(ex.to_t(roots_in(ex))) for ex in md.extra],
+                          axis=1)
 
 
 class PairMotions:
@@ -161,14 +192,13 @@ class PairMotions:
     (``rot``, ``trans``). All in the loop's conditioned parameter (module docstring)."""
 
     def __init__(self, jf: np.ndarray, keys: Iterable[tuple[int, int]]):
-        a, b, _ = factor.conditioning_batch(loops.relative_motion(jf, 0, 3))
+        (a, b), extra = charts(jf)
         polys = {k: loops.relative_motion(jf, *k) for k in keys if k[0] != k[1]}
         self.where: dict[tuple[int, int], tuple[int, int]] = {}
         self.groups: dict[int, MotionData] = {}
         for deg in sorted({m.shape[0] - 1 for m in polys.values()}):
             members = [k for k, m in polys.items() if m.shape[0] - 1 == deg]
-            self.groups[deg] = motion_data(np.stack([polys[k] for k in members]), float(a),
-                                           float(b))
+            self.groups[deg] = motion_data(np.stack([polys[k] for k in members]), a, b, extra)
             self.where.update({k: (deg, n) for n, k in enumerate(members)})
 
     # Sampled rigid maps for cheap upper bounds (true distances at 48 times); computed on first
@@ -291,7 +321,7 @@ def min_distance_batch(
     link i's/link j's home frame (base coordinates at t = inf). Returns ``(dist (B,), t (B,))``,
     ``t = inf`` where the minimum is attained at the home configuration.
     """
-    cand = with_home(_critical_times(md, idx, fixed, moving))
+    cand = with_home(chart_roots(md, lambda m: _critical_times(m, idx, fixed, moving)))
     seg = segments_at(md, idx, moving, cand)
     dist = segment_distance(fixed[:, None, 0], fixed[:, None, 1], seg[..., 0, :], seg[..., 1, :])
     best = np.argmin(dist, axis=1)

@@ -18,6 +18,7 @@ from paraloop_core.errors import RealizationError
 from paraloop_core.realization.clearance import (
     MotionData,
     PairMotions,
+    chart_roots,
     min_distance_batch,
     moved_line,
     plucker,
@@ -42,13 +43,18 @@ def pair_collisions(
     n_items = len(idx)
     pa = plucker(fixed)
     la, ma = pa[:, :3], pa[:, 3:]
-    lb = moved_line(md, idx, moving)
-    om = np.einsum("bc,bcn->bn", la, lb[:, 3:]) + np.einsum("bc,bcn->bn", ma, lb[:, :3])
+
+    def om_of(m: MotionData) -> np.ndarray:
+        lb = moved_line(m, idx, moving)
+        return np.einsum("bc,bcn->bn", la, lb[:, 3:]) + np.einsum("bc,bcn->bn", ma, lb[:, :3])
+
+    om = om_of(md)
     # Om is bilinear in the two Plücker vectors: compare with the size of that product.
     lin = np.abs(md.lines).max(axis=(1, 2, 3))[idx]
     size = lin * np.linalg.norm(pa, axis=1) * np.linalg.norm(plucker(moving), axis=1)
     always = np.abs(om).max(axis=1) <= TOL.zero * size
-    cand = with_home(poly.real_poly_roots(om, rtol=TOL.zero).real)  # in md's s
+    cand = with_home(chart_roots(  # in md's s
+        md, lambda m: poly.real_poly_roots(om if m is md else om_of(m), rtol=TOL.zero).real))
     seg = segments_at(md, idx, moving, cand)
     dist = segment_distance(fixed[:, None, 0], fixed[:, None, 1], seg[..., 0, :], seg[..., 1, :])
     if np.any(always):  # rare: the lines meet for every t; use the exact minimum distance

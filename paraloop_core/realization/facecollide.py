@@ -30,6 +30,7 @@ import numpy as np
 from paraloop_core.algebra import poly
 from paraloop_core.realization.clearance import (
     MotionData,
+    chart_roots,
     dot,
     min_distance_batch,
     moving_segments,
@@ -100,8 +101,11 @@ def face_segment_hits(md: MotionData, idx: np.ndarray, tri: np.ndarray, seg: np.
     """Vertex-face part of the collision test, mask ``(B,)``: a moving segment endpoint crosses
     the fixed triangle ``(B, 3, 3)``, or the segment ``(B, 2, 3)`` pierces it at t = inf."""
     nb = len(idx)
-    g, _ = _plane_polys(md, np.repeat(idx, 2), np.repeat(tri, 2, axis=0), seg.reshape(-1, 3))
-    roots = poly.real_poly_roots(g, rtol=TOL.zero).real.reshape(nb, 2, -1)
+    def roots_in(m: MotionData) -> np.ndarray:
+        g, _ = _plane_polys(m, np.repeat(idx, 2), np.repeat(tri, 2, axis=0), seg.reshape(-1, 3))
+        return poly.real_poly_roots(g, rtol=TOL.zero).real.reshape(2 * nb, -1)
+
+    roots = chart_roots(md, roots_in).reshape(nb, 2, -1)
     cand = np.where(np.isnan(roots), np.inf, roots)  # (B, 2, K): per endpoint
     moved = segments_at(md, idx, seg, cand.reshape(nb, -1)).reshape(nb, 2, -1, 2, 3)
     x = np.stack([moved[:, 0, :, 0], moved[:, 1, :, 1]], axis=1)  # each endpoint at its roots
@@ -120,10 +124,13 @@ def vertex_face_min_distance(md: MotionData, idx: np.ndarray, tri: np.ndarray, x
     """Exact minimum over the cycle of the distance between moving points ``x`` ``(B, 3)`` and
     fixed triangles ``(B, 3, 3)`` where the foot lies inside the face (elsewhere the value is a
     true, larger point-triangle distance). Returns ``(dist (B,), t (B,))``."""
-    g, nrm = _plane_polys(md, idx, tri, x)
-    crit = (pmul(pder(g), nrm) - pmul(g, pder(nrm)))[:, :-1]  # top coefficient cancels
-    cand = _times(np.concatenate([poly.real_poly_roots(crit, rtol=TOL.zero),
-                                  poly.real_poly_roots(g, rtol=TOL.zero)], axis=1))
+    def roots_in(m: MotionData) -> np.ndarray:
+        g, nrm = _plane_polys(m, idx, tri, x)
+        crit = (pmul(pder(g), nrm) - pmul(g, pder(nrm)))[:, :-1]  # top coefficient cancels
+        return np.concatenate([poly.real_poly_roots(crit, rtol=TOL.zero),
+                               poly.real_poly_roots(g, rtol=TOL.zero)], axis=1).real
+
+    cand = _times(chart_roots(md, roots_in))
     xx = np.repeat(x[:, None], 2, axis=1)
     moved = segments_at(md, idx, xx, cand)[..., 0, :]
     dist = point_triangle_distance(moved, tri[:, None])

@@ -5,7 +5,7 @@ only as good as float64 root finding of degree <= 22 polynomials: near a fast tu
 close to the real axis) or near ``t = inf`` a minimum can be missed. So every certified pair is
 re-checked here by branch and bound with rigorous displacement bounds:
 
-* The parameter is conditioned, ``t = a s + b`` (:func:`factor.conditioning_batch`: the norm
+* The parameter is conditioned, ``t = a s + b`` (:func:`clearance.charts`: the norm
   roots gather round ``s = i``), and the projective line is covered by two charts,
   ``s in [-1, 1]`` and ``w = 1/s in [-1, 1]`` (the reversed polynomial; ``w = 0`` is
   ``t = inf``), each split into cells ``[c - r, c + r]``.
@@ -37,9 +37,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from paraloop_core.algebra import dq, factor, poly
+from paraloop_core.algebra import dq, poly
 from paraloop_core.linkage import loops
-from paraloop_core.realization.clearance import segment_distance
+from paraloop_core.realization.clearance import charts, segment_distance
 
 #: Wanted gap ``upper - lower`` relative to the pair's distance (on top of the absolute tol).
 RELATIVE = 1e-4
@@ -83,8 +83,7 @@ def pair_bounds(joint_factors: np.ndarray, fixed: np.ndarray, moving: np.ndarray
                          f"{tol!r}")
     n = len(fixed)
     hints = np.empty((n, 0)) if hints is None else np.asarray(hints, float).reshape(n, -1)
-    a, b, _ = factor.conditioning_batch(loops.relative_motion(jf, 0, 3))
-    a, b = float(a), float(b)
+    (a, b), _ = charts(jf)
     out = np.array([np.inf, np.inf, -np.inf, 0.0])[:, None].repeat(n, axis=1)
     cache: dict[tuple[int, int], tuple[_Chain, _Chain]] = {}
     for row in range(n):  # a few dozen pairs; each one is vectorized over its cells
