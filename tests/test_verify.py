@@ -10,7 +10,7 @@ from scipy.optimize import minimize_scalar
 
 from paraloop_core.algebra import factor, poly
 from paraloop_core.linkage import loops
-from paraloop_core.realization import realize, verify
+from paraloop_core.realization import clearance, realize, verify
 from paraloop_core.validation import table1
 from tests.conftest import random_rotation_factors, seeds
 
@@ -80,25 +80,27 @@ def _distance(c, fixed, moving, th):
                      _act(q, moving[0]), _act(q, moving[1]))
 
 
-def _dense_min(c, fixed, moving):
-    th = np.pi * (DENSE_U - 0.5)
+def _dense_min(c, fixed, moving, extra_th=()):
+    th = np.sort(np.concatenate([np.pi * (DENSE_U - 0.5), np.asarray(extra_th, float)]))
     vals = _distance(c, fixed, moving, th)
     best = float(vals.min())
-    h = np.pi / len(DENSE_U)
     for k in np.argsort(vals)[:4]:
-        # offset from the sample: Brent's relative tolerance then stays far below h
+        # between the neighbouring samples, as an offset: Brent's relative tolerance then
+        # stays far below the spacing (theta is periodic: pi is the same pose)
+        lo = (th[k - 1] - th[k]) if k > 0 else th[-1] - np.pi - th[k]
+        hi = (th[k + 1] - th[k]) if k + 1 < len(th) else th[0] + np.pi - th[k]
         res = minimize_scalar(lambda x, k=k: float(_distance(c, fixed, moving, th[k] + x)[0]),
-                              bounds=(-h, h), method="bounded", options={"xatol": 1e-15})
+                              bounds=(lo, hi), method="bounded", options={"xatol": 1e-15})
         best = min(best, float(res.fun))
     return best
 
 
-def _check(jf, fixed, moving, links, tol=1e-6):
+def _check(jf, fixed, moving, links, tol=1e-6, extra_th=()):
     b = verify.pair_bounds(jf, fixed, moving, links, tol)
     for row in range(len(fixed)):
         c = loops.relative_motion(jf, *links[row])
         scale = 1.0 + np.abs(fixed[row]).max() + np.abs(moving[row]).max()
-        dense = _dense_min(c, fixed[row], moving[row])
+        dense = _dense_min(c, fixed[row], moving[row], extra_th)
         up, lo = b.upper[row], b.lower[row]
         assert lo <= dense + 1e-9 * scale, (row, lo, dense)
         assert up >= dense - 1e-9 * scale, (row, up, dense)
@@ -156,12 +158,61 @@ def test_minimum_near_infinity(t_star):
         c = loops.relative_motion(jf, i, j)
         fixed = rng.normal(size=(2, 3))
         # moving segment = fixed one pulled back by R(t*) and nudged: the pair meets near t*
-        inv = _pose(poly.conj(c), _theta(t_star))
-        moving = np.stack([_act(inv, x)[0] for x in fixed]) + 0.01 * rng.normal(size=3)
-        rows.append(((i, j), fixed, moving))
+        rows.append(((i, j), fixed, _pulled_back(c, fixed, t_star, rng)))
     links = np.array([r[0] for r in rows])
     b = _check(jf, np.array([r[1] for r in rows]), np.array([r[2] for r in rows]), links)
     assert np.all(b.upper < 0.05)
+
+
+def _pulled_back(c, fixed, t_star, rng):
+    """A moving segment that meets ``fixed`` near ``t_star`` (``fixed`` pulled back, nudged)."""
+    inv = _pose(poly.conj(c), _theta(t_star))
+    return np.stack([_act(inv, x)[0] for x in fixed]) + 0.01 * rng.normal(size=3)
+
+
+@pytest.mark.parametrize("width", [1e-3, 1e-6])
+def test_fast_turn(width):
+    """One joint turns within ``|t - 0.3| ~ width`` (a norm root that close to the real axis):
+    the expanded ``|P|^2`` loses all digits there, the factored bound must stay sound and
+    tight, and the exact kernel (charts) must find the minimum inside the turn."""
+    h = random_rotation_factors(np.random.default_rng(8), 3)
+    h[:, 0] = [0.3, -1.0, 2.0]
+    h[0, 1:4] *= width / np.linalg.norm(h[0, 1:4])
+    h[0, 5:8] *= width / np.linalg.norm(h[0, 5:8])
+    jf = loops.loop_joint_factors(factor.all_factorizations(poly.from_factors(h)).factors)[0]
+    rng = np.random.default_rng(3)
+    rows = []
+    for i, j in [(0, 1), (0, 3), (5, 2)]:
+        c = loops.relative_motion(jf, i, j)
+        fixed = rng.normal(size=(2, 3))
+        rows.append(((i, j), fixed, _pulled_back(c, fixed, 0.3 + 0.4 * width, rng)))
+    links = np.array([r[0] for r in rows])
+    fixed, moving = np.array([r[1] for r in rows]), np.array([r[2] for r in rows])
+    extra = np.arctan(0.3 + width * np.linspace(-50.0, 50.0, 20_001))  # resolve the turn
+    b = _check(jf, fixed, moving, links, extra_th=extra)
+    pm = clearance.PairMotions(jf, [tuple(k) for k in links])
+    for row, key in enumerate(links):
+        md, n = pm.data([tuple(key)])[0]
+        exact, _ = clearance.min_distance_batch(md, np.array([n]), fixed[row:row + 1],
+                                                moving[row:row + 1])
+        assert b.lower[row] - 1e-9 <= exact[0] <= b.upper[row] + 1e-6 + verify.RELATIVE
+
+
+@pytest.mark.parametrize("t_star", [3e3, -5e3])
+def test_exact_kernel_finds_contacts_far_out(t_star):
+    """The exact minimum (search side) against the sound bounds where the roots are far apart."""
+    jf = _far_root_loop()
+    rng = np.random.default_rng(int(abs(t_star)))
+    keys = [(0, 2), (1, 4), (2, 5)]
+    pm = clearance.PairMotions(jf, keys)
+    for key in keys:
+        c = loops.relative_motion(jf, *key)
+        fixed = rng.normal(size=(2, 3))
+        moving = _pulled_back(c, fixed, t_star, rng)
+        b = verify.pair_bounds(jf, fixed[None], moving[None], np.array([key]), 1e-6)
+        md, n = pm.data([key])[0]
+        exact, _ = clearance.min_distance_batch(md, np.array([n]), fixed[None], moving[None])
+        assert b.lower[0] - 1e-9 <= exact[0] <= b.upper[0] + 1e-6 + verify.RELATIVE
 
 
 @pytest.mark.parametrize("joint", range(6))
