@@ -1,7 +1,7 @@
 """Sound per-pair minimum distances over the whole cycle: the certificate's last word.
 
 The critical-point polynomials of :mod:`clearance` find the minima fast, but their roots are
-only as good as float64 root finding of degree <= 22 polynomials: near a fast turn (a norm root
+only as good as float64 root finding of degree <= 17 polynomials: near a fast turn (a norm root
 close to the real axis) or near ``t = inf`` a minimum can be missed. So every certified pair is
 re-checked here by branch and bound with rigorous displacement bounds:
 
