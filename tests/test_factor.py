@@ -157,3 +157,15 @@ def test_not_a_motion_polynomial():
     with pytest.raises(NonGenericMotionError, match="Study") as info:
         factor.all_factorizations(c)
     assert info.value.reason == "not-motion"
+
+
+@pytest.mark.parametrize("unit", [1e-4, 1e4])
+def test_unit_of_t_changes_no_answer(unit):
+    """Roots at |t| ~ 1e4 give a monic cubic with coefficients ~1e12 (seed 536 of the random
+    designs was refused as 'leading coefficient zero'): a change of t's unit is no degeneracy."""
+    h = random_rotation_factors(np.random.default_rng(53), 3)
+    c = poly.from_factors(h)
+    scaled = poly.reparametrize(c, unit, 0.0) / unit**3  # C(unit s) / unit^3: monic in s
+    f = factor.all_factorizations(scaled)
+    err = np.abs(poly.from_factors(f.factors) - scaled).max() / np.abs(scaled).max()
+    assert err < 1e-9

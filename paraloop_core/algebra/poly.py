@@ -11,7 +11,6 @@ from __future__ import annotations
 import numpy as np
 
 from paraloop_core.algebra import dq
-from paraloop_core.tolerance import TOL
 
 
 def as_poly(c: np.ndarray, name: str = "polynomial") -> np.ndarray:
@@ -146,18 +145,25 @@ def is_motion_polynomial(c: np.ndarray, rtol: float = 1e-9) -> np.ndarray:
 
 
 def make_monic(c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``(monic, lead)`` with ``C = lead * monic``; raises if the leading coefficient is
-    singular."""
+    """``(monic, lead)`` with ``C = lead * monic``; raises if the leading coefficient's
+    primal part is exactly zero or the division overflows.
+
+    A *small* leading coefficient is no test at all: it depends on the unit of t (``C(lambda
+    t)`` scales coefficient k by ``lambda^k``; a monic cubic with coefficients 1e12 was refused).
+    A motion nearly undefined at t = inf has a norm root near infinity, i.e. at a large
+    hyperbolic distance from the others, which the unit-free genericity test of
+    :mod:`factor` catches (and confirms in high precision)."""
     c = as_poly(c)
     lead = c[..., -1, :]
     pn = np.linalg.norm(lead[..., :4], axis=-1)
-    scale = np.max(np.abs(c), axis=(-2, -1))
-    if np.any(pn <= TOL.zero * scale):
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        monic = dq.mul(dq.inv(lead)[..., None, :], c) if np.all(pn > 0) else None
+    if monic is None or not np.all(np.isfinite(monic)):
         raise ValueError(
             "leading coefficient has zero primal part (the motion is not defined at t = inf); "
             "reparametrize the motion first"
         )
-    return dq.mul(dq.inv(lead)[..., None, :], c), lead
+    return monic, lead
 
 
 def right_divide_linear(c: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
