@@ -1,7 +1,8 @@
 """``paraloop export DESIGN.json --out DIR``: printable parts (STL, 3MF, GLB) and the report.
 
-Solves the design (with its realization), builds the parts at ``--size-mm``, verifies them
-over the cycle and writes ``link_<i>.stl``, ``paraloop.3mf``, ``assembly.glb`` and
+Solves the design (with its realization), sizes the parts for the printer (``--printer``,
+``--bed``; or at ``--size-mm``; :mod:`paraloop_core.fabrication.printable`), builds and verifies
+them over the cycle and writes ``link_<i>.stl``, ``paraloop.3mf``, ``assembly.glb`` and
 ``report.json`` into DIR (all or nothing). DIR is checked before the solve: it must be (or
 become) a writable directory holding none of these files unless ``--force``. Exit status 0 when
 verification passes, 2 on refused input (nothing written), 3 when no realization was found or
@@ -12,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 from app.cli import outputs
@@ -19,8 +21,7 @@ from app.cli.outputs import EXIT_NOT_REALIZED, EXIT_OK, EXIT_REFUSED
 from paraloop_core import design as design_mod
 from paraloop_core import pipeline
 from paraloop_core.errors import ParaloopError, RealizationError
-from paraloop_core.fabrication import export
-from paraloop_core.fabrication.parts import PartSpec
+from paraloop_core.fabrication import printable, sizing
 
 #: the fixed names written into DIR (plus ``link_<i>.stl``)
 FIXED_NAMES = ("paraloop.3mf", "assembly.glb", "report.json")
@@ -51,13 +52,14 @@ def cmd_export(args: argparse.Namespace) -> int:
                   f"({outputs.one_line(status.get('reason', 'no reason given'))})",
                   file=sys.stderr)
             return EXIT_NOT_REALIZED
-        spec = PartSpec(size_mm=args.size_mm, clearance_mm=args.clearance,
-                        print_in_place=args.print_in_place)
-        result = export.export_parts(
-            real.joint_factors, real.points, real.radius, spec=spec, ground=not args.no_ground,
-            ground_axis=args.ground_axis, space_radius=args.carve_radius,
-            resolution=args.resolution, samples=args.samples, effector=sol.end_effector,
-            progress=None if args.quiet else _print_progress)
+        printer = _printer(args)
+        lim = sizing.limits(real.points, real.pairs, real.pair_lower, real.joint_lower)
+        result = printable.export_printable(
+            real.joint_factors, real.points, real.radius, lim, printer=printer,
+            size_mm=args.size_mm, print_in_place=args.print_in_place,
+            ground=not args.no_ground, ground_axis=args.ground_axis,
+            space_radius=args.carve_radius, resolution=args.resolution, samples=args.samples,
+            effector=sol.end_effector, progress=None if args.quiet else _print_progress)
     except RealizationError as exc:
         print(f"error: {path}: {outputs.one_line(exc)}", file=sys.stderr)
         return EXIT_REFUSED if exc.reason == "bad-parameters" else EXIT_NOT_REALIZED
@@ -65,8 +67,13 @@ def cmd_export(args: argparse.Namespace) -> int:
         print(f"error: {path}: {outputs.one_line(exc)}", file=sys.stderr)
         return EXIT_REFUSED
     outputs.write_files(out, result.files)
-    ver = result.report["verification"]
-    print(f"{path} -> {out}: {len(result.files)} files; min gap {ver['min_gap_mm']:.3f} mm, "
+    ver, sz = result.report["verification"], result.report["sizing"]
+    for warning in result.report["warnings"]:
+        print(f"warning: {path}: {outputs.one_line(warning)}", file=sys.stderr)
+    print(f"{path} -> {out}: {len(result.files)} files at {sz['size_mm']:.0f} mm ({sz['chosen']}; "
+          f"bars {sz['bar_radius_mm']:.2f} mm, bosses {sz['boss_radius_mm']:.2f} mm, pins "
+          f"{sz['pin_radius_mm']:.2f} mm radius; {printer.name} bed); min gap "
+          f"{ver['min_gap_mm']:.3f} mm, "
           f"continuous bound {ver['continuous_min_gap_mm']:.3f} mm, "
           f"joint clearance {ver['joint_clearance_mm']:.3f} mm")
     if ver["ok"] and not ver["printable"]:
@@ -76,6 +83,28 @@ def cmd_export(args: argparse.Namespace) -> int:
         print(f"error: {path}: verification failed (see {out / 'report.json'})", file=sys.stderr)
         return EXIT_NOT_REALIZED
     return EXIT_OK
+
+
+def _printer(args: argparse.Namespace) -> sizing.Printer:
+    """The printer profile of ``--printer``, with ``--bed`` and ``--clearance`` applied."""
+    printer = sizing.PRINTERS[args.printer]
+    if args.bed is not None:
+        printer = replace(printer, name=f"{printer.name}, bed {args.bed}", bed_mm=args.bed)
+    if args.clearance is not None:
+        printer = replace(printer, clearance_mm=args.clearance)
+    return printer
+
+
+def _bed(text: str) -> tuple[float, float, float]:
+    parts = text.split(",")
+    try:
+        bed = tuple(float(v) for v in parts)
+    except ValueError:
+        bed = ()
+    if len(bed) != 3 or not all(0 < v <= 1e4 for v in bed):
+        raise argparse.ArgumentTypeError(f"--bed needs X,Y,Z in mm (0 < each <= 10000), "
+                                         f"got {text!r}")
+    return bed
 
 
 def _print_progress(fraction: float, message: str) -> None:
@@ -88,10 +117,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("design", help="design JSON file")
     p.add_argument("--out", required=True, help="output directory")
     p.add_argument("--force", action="store_true", help="overwrite existing files in --out")
-    p.add_argument("--size-mm", type=outputs.float_range(0.0, 1e5, lo_open=True), default=150.0,
-                   help="longest side of the linkage in mm (default 150)")
-    p.add_argument("--clearance", type=outputs.float_range(0.0, 100.0), default=0.3,
-                   help="joint clearance in mm (default 0.3)")
+    p.add_argument("--size-mm", type=outputs.float_range(0.0, 1e5, lo_open=True), default=None,
+                   help="longest side of the linkage in mm (default: chosen for the printer)")
+    p.add_argument("--printer", choices=sorted(sizing.PRINTERS), default="generic",
+                   help="printer profile: bed, walls >= 2 mm, pin radius >= 1 mm, clearance "
+                        "0.3 mm (default generic: 250 x 210 x 210 mm)")
+    p.add_argument("--bed", type=_bed, default=None, help="build volume X,Y,Z in mm")
+    p.add_argument("--clearance", type=outputs.float_range(0.0, 100.0), default=None,
+                   help="joint clearance in mm (default: the printer's, 0.3)")
     p.add_argument("--print-in-place", action="store_true", help="captured pins with heads")
     p.add_argument("--no-ground", action="store_true", help="no grounding column")
     p.add_argument("--ground-axis", type=int, choices=(0, 5), default=None,

@@ -24,7 +24,6 @@ spaced parameters ``u_k = k / samples`` the moving part is placed by the relativ
 
 from __future__ import annotations
 
-import io
 import itertools
 import json
 import time
@@ -135,11 +134,18 @@ def verify_assembly(asm: Assembly, samples: int = 720, search_mm: float | None =
     part_info = []
     for p in parts:
         tm = part_trimesh(p)
+        obb = np.sort(tm.bounding_box_oriented.primitive.extents)
         part_info.append({"name": p.name, "watertight": bool(tm.is_watertight),
+                          "obb_extents_mm": obb.tolist(),
                           "manifold_status": str(p.manifold.status()),
                           "volume_mm3": float(p.manifold.volume()),
                           "triangles": int(p.manifold.num_tri())})
-    u0 = np.arange(samples) / samples
+    # uniform in u plus uniform in each norm factor's rotation angle: a fast turn (the
+    # motion near a singular pose) gets its share of samples instead of endless refinement
+    jf = asm.joint_factors
+    fast = poly.t_to_param(poly.cycle_parameters(
+        jf[:3, 0], np.linalg.norm(jf[:3, 1:4], axis=-1), max(samples // 3, 8))) % 1.0
+    u0 = np.unique(np.concatenate([np.arange(samples) / samples, fast]))
     pairs_out, joint_gaps = [], []
     for k, (a, b) in enumerate(itertools.combinations(range(6), 2)):
         if progress is not None:
@@ -260,10 +266,21 @@ def export_assembly(asm: Assembly, *, verify: bool = True, samples: int = 720,
     report = {"scale_mm_per_unit": asm.scale, "spec": asdict(asm.spec), **(extra_report or {})}
     if verify:
         report["verification"] = verify_assembly(asm, samples, progress=progress)
-    buf = io.StringIO()
-    json.dump(report, buf, indent=2)
-    files.append(("report.json", buf.getvalue().encode()))
+    files.append(("report.json", report_json(report)))
     return ExportResult(files, report)
+
+
+def report_json(report: dict) -> bytes:
+    """``report.json``'s bytes, strict JSON (a non-finite number, e.g. an unbounded gap,
+    is written as null)."""
+    def finite(x):
+        if isinstance(x, dict):
+            return {k: finite(v) for k, v in x.items()}
+        if isinstance(x, (list, tuple)):
+            return [finite(v) for v in x]
+        return None if isinstance(x, float) and not np.isfinite(x) else x
+
+    return json.dumps(finite(report), indent=2, allow_nan=False).encode()
 
 
 def _stage(progress: Progress | None, lo: float, hi: float) -> Progress | None:

@@ -1,0 +1,82 @@
+"""Automatic size and radii from the certified pair bounds (:mod:`fabrication.sizing`)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from paraloop_core.errors import FabricationError
+from paraloop_core.fabrication import sizing
+
+LIM = sizing.Limits(bar_bar=0.02, bar_pin=0.03, pin_pin=0.1, extent=1.0)
+GENERIC = sizing.PRINTERS["generic"]
+
+
+def _constraints_hold(sz: sizing.Sizing, lim: sizing.Limits, printer: sizing.Printer) -> None:
+    k, c = sz.scale, printer.clearance_mm
+    tol = 1e-9
+    assert 2 * sz.bar_radius_mm + c <= k * lim.bar_bar + tol
+    assert sz.bar_radius_mm + sz.boss_radius_mm + c <= k * lim.bar_pin + tol
+    assert 2 * sz.boss_radius_mm + c <= k * lim.pin_pin + tol
+    assert sz.bar_radius_mm >= printer.wall_mm / 2 - tol
+    assert sz.pin_radius_mm >= printer.pin_radius_mm - tol
+    assert sz.boss_radius_mm >= sz.pin_radius_mm + c + printer.wall_mm - tol
+    assert sz.bar_radius_mm < sz.boss_radius_mm
+
+
+def test_minimum_size_is_the_binding_constraint():
+    sz = sizing.choose_size(LIM, GENERIC)
+    # bar-bar: (2 * 1 + 0.3) / 0.02 = 115; bar-boss: (1 + 3.3 + 0.3) / 0.03 = 153.3
+    assert sz.min_size_mm == pytest.approx(4.6 / 0.03)
+    assert sz.binding == "bar-boss clearance"
+    assert sz.size_mm == pytest.approx(sz.min_size_mm)  # above the preferred 150 mm
+    _constraints_hold(sz, LIM, GENERIC)
+    at_min = sizing.choose_size(LIM, GENERIC, sz.min_size_mm)
+    assert at_min.bar_radius_mm == pytest.approx(1.0)
+    assert at_min.boss_radius_mm == pytest.approx(3.3)
+
+
+@pytest.mark.parametrize("size", [180.0, 250.0, 1000.0])
+def test_radii_grow_within_the_certified_limits(size):
+    sz = sizing.choose_size(LIM, GENERIC, size)
+    _constraints_hold(sz, LIM, GENERIC)
+    smaller = sizing.choose_size(LIM, GENERIC, 0.9 * size)
+    assert sz.boss_radius_mm >= smaller.boss_radius_mm
+    assert sz.bar_radius_mm >= smaller.bar_radius_mm
+    if size >= 1000:  # beyond the profile's minimum the caps let them grow with the size
+        assert sz.boss_radius_mm > smaller.boss_radius_mm
+
+
+def test_too_small_a_size_is_refused_with_the_minimum():
+    with pytest.raises(FabricationError, match="bar-boss clearance needs at least 154 mm"):
+        sizing.choose_size(LIM, GENERIC, 100.0)
+
+
+def test_limits_by_pair_type():
+    pts = np.arange(36, dtype=float).reshape(12, 3) % 7
+    pairs = np.array([[0, 4, 0, 2], [0, 3, 0, 1], [1, 7, 0, 3], [2, 6, 1, 3]])
+    lim = sizing.limits(pts, pairs, np.array([0.4, 0.6, 0.9, 0.3]), np.full(6, 0.35))
+    # bar-bar: min(0.4, 0.3, joint 0.35); bar-pin 0.6; pin-pin 0.9
+    assert (lim.bar_bar, lim.bar_pin, lim.pin_pin) == (0.3, 0.6, 0.9)
+    assert lim.extent == pytest.approx(6.0)
+
+
+def test_bed_fit_in_any_orientation():
+    fit = sizing.fits_bed(np.array([[200.0, 240.0, 10.0], [260.0, 1.0, 1.0]]), GENERIC)
+    assert fit.tolist() == [True, False]
+
+
+def test_plain_export_sizes_for_the_printer(tmp_path):
+    from app.cli.main import main
+
+    out = tmp_path / "parts"
+    code = main(["export", "assets/designs/sun-disc.json", "--out", str(out), "--samples", "90",
+                 "--quiet"])
+    report = json.loads((out / "report.json").read_text())
+    assert code == 0 and report["verification"]["ok"]
+    sz = report["sizing"]
+    assert sz["chosen"] == "auto" and all(sz["fits_bed"])
+    assert sz["size_mm"] >= sz["min_size_mm"] and sz["pin_radius_mm"] >= 1.0
+    assert sz["boss_radius_mm"] >= sz["pin_radius_mm"] + 0.3 + 2.0 - 1e-9
