@@ -41,9 +41,9 @@ def _ball(rng, center, radius, m=12):
     return center + r[:, None] * v
 
 
-def _check_displacement(c, mb, radius, u, rng, sub=24):
+def _check_displacement(c, mb, radius, u, rng, sub=24, bound=None):
     """For each sample k: dense times between the midpoints to its neighbours (cyclic)."""
-    bound = mbm.displacement_bounds(mb, radius, u)
+    bound = mbm.displacement_bounds(mb, radius, u) if bound is None else bound
     assert bound.shape == u.shape and np.all(np.isfinite(bound)) and np.all(bound >= 0)
     pts = _ball(rng, mb.center, radius)
     lo = (u + np.r_[u[-1] - 1.0, u[:-1]]) / 2
@@ -140,6 +140,27 @@ def test_close_to_a_singular_pose(small):
             mb = mbm.motion_bound(jf, i, j, center)  # must not raise
             assert np.all(np.isfinite(mb.omega)) and np.all(np.isfinite(mb.speed))
             _check_displacement(c, mb, 0.3, u, rng)
+
+
+@pytest.mark.parametrize("small", [None, 1e-3, 1e-5])
+def test_chain_bound_is_sound_and_stays_tight_near_a_singular_pose(small):
+    """The joint-angle bound against dense sampling, on random loops and near a singular pose,
+    where it stays of the order of the true step (the speed bound: ~1e8 times it)."""
+    rng = np.random.default_rng(4)
+    u = np.linspace(0.0, 1.0, 240, endpoint=False)
+    if small is not None:
+        u = np.unique(np.r_[u, poly.t_to_param(0.5 + small * np.linspace(-50.0, 50.0, 301))])
+    cases = _near_singular_loop(small) if small is not None else \
+        [table1.random_loops(s, 1)[0, s % 2] for s in (3, 8)]
+    for jf in cases:
+        for i, j in [(0, 1), (1, 3), (0, 3), (2, 5), (4, 1)]:
+            center, radius = rng.normal(size=3), 0.3
+            bound = mbm.chain_displacement_bounds(jf, i, j, center, radius, u)
+            mb = mbm.motion_bound(jf, i, j, center)
+            dist, _ = _check_displacement(loops.relative_motion(jf, i, j), mb, radius, u, rng,
+                                          bound=bound)
+            # the order of the true motion (a sum of chords), never the speed bound's 1e8
+            assert bound.max() <= 10.0 * (dist.max() + radius)
 
 
 @pytest.mark.xfail(strict=True, reason="near a singular pose the bound is ~1e8 times the true "

@@ -49,13 +49,20 @@ from paraloop_core.fabrication.parts import (
 )
 from paraloop_core.linkage import loops
 from paraloop_core.realization.clearance import segment_distance
-from paraloop_core.realization.motion_bound import displacement_bounds, motion_bound
+from paraloop_core.realization.motion_bound import (
+    chain_displacement_bounds,
+    displacement_bounds,
+    motion_bound,
+)
 
 if TYPE_CHECKING:
     from paraloop_core.realization.ee_certificate import EndEffectorRealization
     from paraloop_core.realization.endeffector import EndEffector
 
 Progress = Callable[[float, str], None]
+#: Exact (manifold3d) gap checks one pair may spend refining between samples; beyond it the
+#: pair's continuous bound stays as far as proven (``ok`` false if that is not > 0).
+MAX_EXACT_CHECKS = 3000
 _COLORS = np.array([[150, 150, 150], [220, 60, 60], [60, 160, 70], [240, 140, 30],
                     [60, 110, 220], [170, 80, 200]], np.uint8)
 
@@ -122,6 +129,16 @@ def _subsamples(u: np.ndarray, idx: np.ndarray, counts: np.ndarray) -> np.ndarra
     return np.unique((lo + (hi - lo) * (k + 0.5) / np.repeat(n, n)) % 1.0)
 
 
+def _step_motion(asm: Assembly, a: int, b: int, bound, reach: float,
+                 u: np.ndarray) -> np.ndarray:
+    """How far (mm) part b's points within ``reach`` of ``bound.center`` move, relative to
+    part a, about each sample ``u``: the smaller of two sound bounds (speed bound, joint
+    angles: the latter stays finite near a singular pose)."""
+    r, c = reach / asm.scale, bound.center
+    return asm.scale * np.minimum(displacement_bounds(bound, r, u),
+                                  chain_displacement_bounds(asm.joint_factors, a, b, c, r, u))
+
+
 def verify_assembly(asm: Assembly, samples: int = 720, search_mm: float | None = None,
                     progress: Progress | None = None) -> dict:
     """Check watertightness and pairwise clearance over the cycle (module docstring); returns
@@ -134,9 +151,7 @@ def verify_assembly(asm: Assembly, samples: int = 720, search_mm: float | None =
     part_info = []
     for p in parts:
         tm = part_trimesh(p)
-        obb = np.sort(tm.bounding_box_oriented.primitive.extents)
         part_info.append({"name": p.name, "watertight": bool(tm.is_watertight),
-                          "obb_extents_mm": obb.tolist(),
                           "manifold_status": str(p.manifold.status()),
                           "volume_mm3": float(p.manifold.volume()),
                           "triangles": int(p.manifold.num_tri())})
@@ -174,20 +189,23 @@ def verify_assembly(asm: Assembly, samples: int = 720, search_mm: float | None =
         center = 0.5 * (ends.min(0) + ends.max(0))
         reach = float(np.max(np.linalg.norm(ends - center, axis=1)) + pb.radii.max())
         bound = motion_bound(asm.joint_factors, a, b, center / asm.scale)
+
         gap, vol, n_exact = _pair_gaps(asm, a, b, ma, mb, caps, u0, search)
         u = u0
         for _ in range(4):  # refine cells whose motion bound exceeds their gap
-            delta = displacement_bounds(bound, reach / asm.scale, u) * asm.scale
+            delta = _step_motion(asm, a, b, bound, reach, u)
             bad = np.nonzero((gap - delta <= 0) & (gap > 0))[0]
             if not len(bad) or np.any(vol > 1e-9):  # certified, or a collision anyway
                 break
             new = _subsamples(u, bad, np.ceil(2 * delta[bad] / gap[bad]))
+            if n_exact + len(new) > MAX_EXACT_CHECKS:  # unproven: the report says so
+                break
             g_new, v_new, n_new = _pair_gaps(asm, a, b, ma, mb, caps, new, search)
             n_exact += n_new
             order = np.argsort(np.concatenate([u, new]))
             u = np.concatenate([u, new])[order]
             gap, vol = np.concatenate([gap, g_new])[order], np.concatenate([vol, v_new])[order]
-        delta = displacement_bounds(bound, reach / asm.scale, u) * asm.scale
+        delta = _step_motion(asm, a, b, bound, reach, u)
         i_min = int(np.argmin(gap))
         pairs_out.append({
             "links": [a, b], "adjacent": joint is not None,
@@ -263,7 +281,10 @@ def export_assembly(asm: Assembly, *, verify: bool = True, samples: int = 720,
         tm.visual.face_colors = np.append(_COLORS[p.link], 255)
         glb.add_geometry(tm, node_name=p.name, geom_name=p.name)
     files.append(("assembly.glb", glb.export(file_type="glb")))
-    report = {"scale_mm_per_unit": asm.scale, "spec": asdict(asm.spec), **(extra_report or {})}
+    report = {"scale_mm_per_unit": asm.scale, "spec": asdict(asm.spec),
+              "parts": [{"name": name, "obb_extents_mm":  # for bed fit and the part list
+                         np.sort(tm.bounding_box_oriented.primitive.extents).tolist()}
+                        for name, tm in meshes.items()], **(extra_report or {})}
     if verify:
         report["verification"] = verify_assembly(asm, samples, progress=progress)
     files.append(("report.json", report_json(report)))
@@ -297,7 +318,7 @@ def export_parts(joint_factors: np.ndarray, points: np.ndarray, radius: float, *
                  resolution: int = 128, order: Sequence[tuple[int, int]] = carve.DEFAULT_ORDER,
                  samples: int = 720,
                  effector: EndEffector | EndEffectorRealization | None = None,
-                 progress: Progress | None = None) -> ExportResult:
+                 progress: Progress | None = None, verify: bool = True) -> ExportResult:
     """Parts of a realized loop (``joint_factors`` ``(6, 8)``, ``points`` ``(12, 3)``, bar
     ``radius``, design units) at ``spec.size_mm``, with a grounding column on link 0
     (``ground``; ``ground_z`` in design units) and, if ``space_radius`` is given (one value:
@@ -353,7 +374,7 @@ def export_parts(joint_factors: np.ndarray, points: np.ndarray, radius: float, *
     if el is not None:  # P is cut only where it would enter a joint's hardware zone
         report["end_effector"] = {"method": el.method, "volume_mm3": solid.volume(),
                                   "kept_mm3": (asm.parts[3].manifold ^ solid).volume()}
-    return export_assembly(asm, samples=samples, extra_report=report,
+    return export_assembly(asm, verify=verify, samples=samples, extra_report=report,
                            progress=_stage(progress, 0.5, 1.0))
 
 

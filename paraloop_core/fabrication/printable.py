@@ -31,7 +31,7 @@ _FIT_ROUNDS = 3
 
 def part_extents(result: ExportResult) -> np.ndarray:
     """Sorted oriented-bounding-box extents ``(6, 3)`` (mm) of the exported parts."""
-    return np.array([p["obb_extents_mm"] for p in result.report["verification"]["parts"]])
+    return np.array([p["obb_extents_mm"] for p in result.report["parts"]])
 
 
 def export_printable(joint_factors: np.ndarray, points: np.ndarray, radius: float,
@@ -49,9 +49,12 @@ def export_printable(joint_factors: np.ndarray, points: np.ndarray, radius: floa
         spec = PartSpec(size_mm=sz.size_mm, clearance_mm=printer.clearance_mm,
                         rho_mm=sz.bar_radius_mm, boss_radius_mm=sz.boss_radius_mm,
                         pin_radius_mm=sz.pin_radius_mm, print_in_place=print_in_place)
-        result = _export(joint_factors, points, radius, spec, ground, warnings, options)
+        # bed fit from the built parts first; the (costly) verification only for the last
+        result = _export(joint_factors, points, radius, spec, ground, warnings,
+                         {**options, "verify": False})
         fit = sizing.fits_bed(part_extents(result), printer)
         if fit.all() or not auto:
+            result = _export(joint_factors, points, radius, spec, ground, [], options)
             break
         ratio = float(np.min(np.sort(printer.bed_mm)[None] / part_extents(result)[~fit]))
         smaller = sz.size_mm * min(ratio, 0.99)
