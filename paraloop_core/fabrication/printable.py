@@ -65,6 +65,7 @@ def export_printable(joint_factors: np.ndarray, points: np.ndarray, radius: floa
                 f"largest part is {part_extents(result).max():.0f} mm long; use a larger "
                 "printer (--printer / --bed), thinner walls or a thinner pin", "bad-parameters")
         sz = sizing.choose_size(lim, printer, smaller)
+    warnings += sizing.notch_warnings(points, sz, printer)
     if not fit.all():
         warnings.append(f"parts {np.flatnonzero(~fit).tolist()} do not fit the bed "
                         f"{_bed(printer)} mm at the requested {sz.size_mm:.0f} mm")

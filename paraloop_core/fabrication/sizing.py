@@ -144,3 +144,38 @@ def fits_bed(extents_mm: np.ndarray, printer: Printer) -> np.ndarray:
     bed, i.e. sorted extents below sorted bed sides."""
     ext = np.sort(np.asarray(extents_mm, float), axis=-1)
     return np.all(ext <= np.sort(printer.bed_mm), axis=-1)
+
+
+def lean_back(points: np.ndarray) -> np.ndarray:
+    """``(6, 2)`` (design units): at joint i, how far from the axis link i+1's bar passes over
+    the pin's midpoint when it leans back over link i's boss (column 0), and link i's bar over
+    link i+1's boss (column 1); ``inf`` where a bar does not lean back that far. Where this is
+    below ``R_bar + R_boss + c`` (scaled), the bar runs through the joint zone beside the other
+    boss and the zone cut notches it: the parts stay apart, but the bar is weakened there."""
+    pts = np.asarray(points, float)
+    out = np.full((6, 2), np.inf)
+    for i in range(6):
+        e, s = pts[2 * i + 1], pts[(2 * i + 2) % 12]
+        half = 0.5 * np.linalg.norm(s - e)
+        w = (s - e) / max(2.0 * half, 1e-300)
+        for side, (start, end, back) in enumerate(((s, pts[(2 * i + 3) % 12], -w),
+                                                   (e, pts[2 * i], w))):
+            v = end - start
+            along = float(v @ back)  # the bar's axial run towards the other boss
+            if along > half:
+                out[i, side] = float(np.linalg.norm(v - along * back)) * half / along
+    return out
+
+
+def notch_warnings(points: np.ndarray, sz: Sizing, printer: Printer) -> list[str]:
+    """One warning per bar notched by a joint zone at this size (:func:`lean_back`)."""
+    need = sz.bar_radius_mm + sz.boss_radius_mm + printer.clearance_mm
+    lb = lean_back(points) * sz.scale
+    out = []
+    for i, side in np.argwhere(lb < need):
+        link, other = ((i + 1) % 6, i) if side == 0 else (i, (i + 1) % 6)
+        out.append(f"link {link}'s bar leans back over link {other}'s boss at joint {i} and is "
+                   f"notched by the joint zone (it passes {lb[i, side]:.2f} mm from the axis, "
+                   f"{need:.2f} mm would clear it): with these radii about "
+                   f"{np.ceil(sz.size_mm * need / lb[i, side]):.0f} mm avoids the notch")
+    return out
