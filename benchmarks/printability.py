@@ -24,7 +24,7 @@ sys.path.insert(0, str(ROOT))
 from independent.generic_designs import random_design  # noqa: E402
 
 import paraloop_core as pl  # noqa: E402
-from paraloop_core.fabrication import printable, sizing  # noqa: E402
+from paraloop_core.fabrication import printable  # noqa: E402
 
 
 def run_one(item: tuple[str, object]) -> dict:
@@ -39,9 +39,7 @@ def run_one(item: tuple[str, object]) -> dict:
         real = sol.realization
         if real is None:
             return {**row, "outcome": "not realized", "time": time.perf_counter() - t0}
-        lim = sizing.limits(real.points, real.pairs, real.pair_lower, real.joint_lower)
-        res = printable.export_printable(real.joint_factors, real.points, real.radius, lim,
-                                         effector=sol.end_effector, samples=720)
+        res = printable.export_printable(real, effector=sol.end_effector)
     except ValueError as exc:  # the CLI's refusals (FabricationError etc.)
         return {**row, "outcome": f"refused: {' '.join(str(exc).split()[:12])}",
                 "time": time.perf_counter() - t0}
@@ -67,6 +65,8 @@ def main(argv: list[str] | None = None) -> None:
             f" size {row['size_mm']:.0f} mm, wall {row['wall_mm']:.2f} mm, largest part "
             f"{row['largest_mm']:.0f} mm, min gap {row['min_gap_mm']:.3f} mm")
         print(f"{row['design']:>16}: {row['outcome']}{extra} ({row['time']:.1f} s)", flush=True)
+    if pool:
+        pool.close()
     realized = [r for r in rows if r["outcome"] != "not realized"]
     done = [r for r in realized if "size_mm" in r]
     print(f"\n{len(rows)} designs, {len(realized)} realized: exported {len(done)} "

@@ -47,16 +47,13 @@ def cmd_export(args: argparse.Namespace) -> int:
         sol = pipeline.solve(design)
         real = sol.realization
         if real is None:
-            status = pipeline.result_to_dict(sol).get("realization", {})
+            reason = (sol.realization_report or {}).get("reason", "no reason given")
             print(f"error: {path}: no collision-free realization found "
-                  f"({outputs.one_line(status.get('reason', 'no reason given'))})",
-                  file=sys.stderr)
+                  f"({outputs.one_line(reason)})", file=sys.stderr)
             return EXIT_NOT_REALIZED
         printer = _printer(args)
-        lim = sizing.limits(real.points, real.pairs, real.pair_lower, real.joint_lower)
         result = printable.export_printable(
-            real.joint_factors, real.points, real.radius, lim, printer=printer,
-            size_mm=args.size_mm, print_in_place=args.print_in_place,
+            real, printer=printer, size_mm=args.size_mm, print_in_place=args.print_in_place,
             ground=not args.no_ground, ground_axis=args.ground_axis,
             space_radius=args.carve_radius, resolution=args.resolution, samples=args.samples,
             effector=sol.end_effector, progress=None if args.quiet else _print_progress)
@@ -96,15 +93,11 @@ def _printer(args: argparse.Namespace) -> sizing.Printer:
 
 
 def _bed(text: str) -> tuple[float, float, float]:
+    side = outputs.float_range(0.0, 1e4, lo_open=True)
     parts = text.split(",")
-    try:
-        bed = tuple(float(v) for v in parts)
-    except ValueError:
-        bed = ()
-    if len(bed) != 3 or not all(0 < v <= 1e4 for v in bed):
-        raise argparse.ArgumentTypeError(f"--bed needs X,Y,Z in mm (0 < each <= 10000), "
-                                         f"got {text!r}")
-    return bed
+    if len(parts) != 3:
+        raise argparse.ArgumentTypeError(f"--bed needs X,Y,Z in mm, got {text!r}")
+    return tuple(side(v) for v in parts)
 
 
 def _print_progress(fraction: float, message: str) -> None:

@@ -17,9 +17,11 @@ spaced parameters ``u_k = k / samples`` the moving part is placed by the relativ
   (measured once, minus the polygon error: ``joint_zone_gap_mm``), and (iii) the parts outside
   ``W_J`` are checked at every sample like any other pair;
 * continuity: the gap at any parameter between samples is at least the gap at the nearest
-  sample minus the displacement bound of :func:`motion_bound.displacement_bounds` (points of the
-  moving part within its bounding sphere, mm). ``continuous_min_gap_mm > 0`` for every pair
-  certifies the parts collision-free over the whole continuous cycle.
+  sample minus a displacement bound (points of the moving part within its bounding sphere,
+  mm): the smaller of :func:`motion_bound.displacement_bounds` (speed) and
+  :func:`motion_bound.chain_displacement_bounds` (joint angles; finite near a singular
+  pose). ``continuous_min_gap_mm > 0`` for every pair certifies the parts collision-free
+  over the whole continuous cycle.
 """
 
 from __future__ import annotations
@@ -205,7 +207,8 @@ def verify_assembly(asm: Assembly, samples: int = 720, search_mm: float | None =
             order = np.argsort(np.concatenate([u, new]))
             u = np.concatenate([u, new])[order]
             gap, vol = np.concatenate([gap, g_new])[order], np.concatenate([vol, v_new])[order]
-        delta = _step_motion(asm, a, b, bound, reach, u)
+        else:  # all rounds refined: the bound of the final samples
+            delta = _step_motion(asm, a, b, bound, reach, u)
         i_min = int(np.argmin(gap))
         pairs_out.append({
             "links": [a, b], "adjacent": joint is not None,
@@ -238,7 +241,8 @@ def verify_assembly(asm: Assembly, samples: int = 720, search_mm: float | None =
         "collisions": int(collisions),
         "method": "gaps at evenly spaced u by manifold3d min_gap (capsule broad phase), "
                   "intersection volume on contact; continuous bound = gap - max motion of "
-                  "the moving part between samples (Bernstein speed bound); adjacent parts "
+                  "the moving part between samples (the smaller of the Bernstein speed bound "
+                  "and the joint-angle bound); adjacent parts "
                   "exclude the joint zone, whose hardware is a solid of revolution",
         "parts": part_info,
         "pairs": pairs_out,
@@ -251,10 +255,12 @@ def verify_assembly(asm: Assembly, samples: int = 720, search_mm: float | None =
 
 @dataclass(frozen=True)
 class ExportResult:
-    """Files ``(name, bytes)`` and the JSON-ready report (also among the files)."""
+    """Files ``(name, bytes)``, the JSON-ready report (also among the files) and the
+    ``assembly`` they were made of."""
 
     files: list[tuple[str, bytes]]
     report: dict
+    assembly: Assembly | None = None
 
 
 def export_assembly(asm: Assembly, *, verify: bool = True, samples: int = 720,
@@ -288,7 +294,7 @@ def export_assembly(asm: Assembly, *, verify: bool = True, samples: int = 720,
     if verify:
         report["verification"] = verify_assembly(asm, samples, progress=progress)
     files.append(("report.json", report_json(report)))
-    return ExportResult(files, report)
+    return ExportResult(files, report, asm)
 
 
 def report_json(report: dict) -> bytes:
@@ -304,7 +310,7 @@ def report_json(report: dict) -> bytes:
     return json.dumps(finite(report), indent=2, allow_nan=False).encode()
 
 
-def _stage(progress: Progress | None, lo: float, hi: float) -> Progress | None:
+def stage(progress: Progress | None, lo: float, hi: float) -> Progress | None:
     """Map a sub-task's progress in [0, 1] onto [lo, hi] of the caller's."""
     if progress is None:
         return None
@@ -337,7 +343,7 @@ def export_parts(joint_factors: np.ndarray, points: np.ndarray, radius: float, *
     if space_radius is not None:
         cv, bodies = carve_design_spaces(joint_factors, pts, radius, space_radius, spec=spec,
                                          resolution=resolution, order=order, effector=effector,
-                                         progress=_stage(progress, 0.0, 0.4))
+                                         progress=stage(progress, 0.0, 0.4))
         report["carving"] = {**cv.report, "meshed": [b is not None for b in bodies]}
     extras = None
     if ground:
@@ -375,7 +381,7 @@ def export_parts(joint_factors: np.ndarray, points: np.ndarray, radius: float, *
         report["end_effector"] = {"method": el.method, "volume_mm3": solid.volume(),
                                   "kept_mm3": (asm.parts[3].manifold ^ solid).volume()}
     return export_assembly(asm, verify=verify, samples=samples, extra_report=report,
-                           progress=_stage(progress, 0.5, 1.0))
+                           progress=stage(progress, 0.5, 1.0))
 
 
 def carve_design_spaces(joint_factors: np.ndarray, points: np.ndarray, radius: float,
@@ -405,7 +411,7 @@ def carve_design_spaces(joint_factors: np.ndarray, points: np.ndarray, radius: f
         fixed = [(3, endlink.solid_space(el, spaces[3].pitch, scale))]
     cv = carve.carve(joint_factors, pts, spaces, keep_radius=float(radius),
                      joint_radius=rs.boss_radius_mm / scale * 1.1, order=order, bars=bars,
-                     fixed=fixed, progress=_stage(progress, 0.0, 0.9))
+                     fixed=fixed, progress=stage(progress, 0.0, 0.9))
     bodies = [_carved_body(sp) for sp in cv.spaces]
     if progress is not None:
         progress(1.0, "carved spaces meshed")

@@ -8,7 +8,8 @@
   report says so (``warnings``), rather than failing;
 * bed fit: each part's oriented bounding box must fit the printer's bed in some orientation;
   if one does not and the size was chosen automatically, the size shrinks by the worst
-  part's ratio (never below the profile's minimum) and the parts are rebuilt.
+  part's ratio (never below the profile's minimum) and the parts are rebuilt; the
+  verification over the cycle runs once, on the parts of the size kept.
 
 When no size meets every constraint the :class:`FabricationError` names the conflict and the
 best reachable size.
@@ -24,6 +25,7 @@ from paraloop_core.errors import FabricationError
 from paraloop_core.fabrication import export, sizing
 from paraloop_core.fabrication.export import ExportResult
 from paraloop_core.fabrication.parts import PartSpec
+from paraloop_core.realization.realize import Realization
 
 #: Rebuilds allowed to shrink an automatically sized assembly onto the bed.
 _FIT_ROUNDS = 3
@@ -34,14 +36,17 @@ def part_extents(result: ExportResult) -> np.ndarray:
     return np.array([p["obb_extents_mm"] for p in result.report["parts"]])
 
 
-def export_printable(joint_factors: np.ndarray, points: np.ndarray, radius: float,
-                     lim: sizing.Limits, *, printer: sizing.Printer = sizing.PRINTERS["generic"],
+def export_printable(realization: Realization, *,
+                     printer: sizing.Printer = sizing.PRINTERS["generic"],
                      size_mm: float | None = None, print_in_place: bool = False,
-                     ground: bool = True, **options) -> ExportResult:
-    """Parts of a realized loop sized for ``printer`` (module docstring); ``lim`` from
-    :func:`sizing.limits` of the same realization, ``options`` as :func:`export.export_parts`.
-    The report gains ``sizing`` (size, radii, minimum size and its binding constraint, the
-    printer, bed fit) and ``warnings``."""
+                     ground: bool = True, samples: int = 720,
+                     progress: export.Progress | None = None, **options) -> ExportResult:
+    """Parts of ``realization`` sized for ``printer`` (module docstring); ``options`` as
+    :func:`export.export_parts`. The parts are built (and exported) per size tried, verified
+    once at the last. The report gains ``sizing`` (size, radii, minimum size and its binding
+    constraint, the printer, bed fit) and ``warnings``."""
+    real = realization
+    lim = sizing.limits(real.points, real.pairs, real.pair_lower, real.joint_lower)
     auto = size_mm is None
     sz = sizing.choose_size(lim, printer, size_mm)
     warnings: list[str] = []
@@ -49,53 +54,52 @@ def export_printable(joint_factors: np.ndarray, points: np.ndarray, radius: floa
         spec = PartSpec(size_mm=sz.size_mm, clearance_mm=printer.clearance_mm,
                         rho_mm=sz.bar_radius_mm, boss_radius_mm=sz.boss_radius_mm,
                         pin_radius_mm=sz.pin_radius_mm, print_in_place=print_in_place)
-        # bed fit from the built parts first; the (costly) verification only for the last
-        result = _export(joint_factors, points, radius, spec, ground, warnings,
-                         {**options, "verify": False})
-        fit = sizing.fits_bed(part_extents(result), printer)
+        build = dict(spec=spec, verify=False, samples=samples,
+                     progress=export.stage(progress, 0.0, 0.5), **options)
+        try:
+            result = export.export_parts(real.joint_factors, real.points, real.radius,
+                                         ground=ground, **build)
+        except FabricationError as exc:
+            if not ground or exc.reason != "grounding":
+                raise
+            ground = False  # no column at this size: the smaller ones are not tried again
+            warnings.append(f"exported without a grounding column: {exc}")
+            result = export.export_parts(real.joint_factors, real.points, real.radius,
+                                         ground=False, **build)
+        extents = part_extents(result)
+        fit = sizing.fits_bed(extents, printer)
         if fit.all() or not auto:
-            result = _export(joint_factors, points, radius, spec, ground, [], options)
             break
-        ratio = float(np.min(np.sort(printer.bed_mm)[None] / part_extents(result)[~fit]))
-        smaller = sz.size_mm * min(ratio, 0.99)
+        smaller = sz.size_mm * min(float(np.min(np.sort(printer.bed_mm) / extents[~fit])), 0.99)
         if smaller < sz.min_size_mm:
             raise FabricationError(
                 f"no size fits printer {printer.name!r} (bed {_bed(printer)} mm): the "
                 f"{sz.binding} needs at least {np.ceil(sz.min_size_mm):.0f} mm, where the "
-                f"largest part is {part_extents(result).max():.0f} mm long; use a larger "
-                "printer (--printer / --bed), thinner walls or a thinner pin", "bad-parameters")
+                f"largest part is {extents.max():.0f} mm long; use a larger printer "
+                "(--printer / --bed), thinner walls or a thinner pin", "bad-parameters")
         sz = sizing.choose_size(lim, printer, smaller)
-    warnings += sizing.notch_warnings(points, sz, printer)
+    else:
+        raise FabricationError(
+            f"the parts did not fit printer {printer.name!r} (bed {_bed(printer)} mm) after "
+            f"{_FIT_ROUNDS} smaller sizes (down to {sz.size_mm:.0f} mm); use --size-mm or a "
+            "larger bed", "bad-parameters")
+    warnings += sizing.notch_warnings(real.points, sz, printer)
     if not fit.all():
         warnings.append(f"parts {np.flatnonzero(~fit).tolist()} do not fit the bed "
                         f"{_bed(printer)} mm at the requested {sz.size_mm:.0f} mm")
-    result.report["sizing"] = {
+    report = result.report
+    report["verification"] = export.verify_assembly(result.assembly, samples,
+                                                    progress=export.stage(progress, 0.5, 1.0))
+    report["sizing"] = {
         "size_mm": sz.size_mm, "chosen": "auto" if auto else "requested",
         "bar_radius_mm": sz.bar_radius_mm, "boss_radius_mm": sz.boss_radius_mm,
         "pin_radius_mm": sz.pin_radius_mm, "min_size_mm": sz.min_size_mm,
         "binding_constraint": sz.binding, "printer": printer.name, "bed_mm": printer.bed_mm,
         "wall_mm": printer.wall_mm, "fits_bed": fit.tolist()}
-    result.report["warnings"] = warnings
-    return _with_report(result)
-
-
-def _export(joint_factors, points, radius, spec, ground, warnings, options) -> ExportResult:
-    try:
-        return export.export_parts(joint_factors, points, radius, spec=spec, ground=ground,
-                                   **options)
-    except FabricationError as exc:
-        if not ground or exc.reason != "grounding":
-            raise
-        warnings.append(f"exported without a grounding column: {exc}")
-    return export.export_parts(joint_factors, points, radius, spec=spec, ground=False,
-                               **options)
+    report["warnings"] = warnings
+    files = [(n, b) for n, b in result.files if n != "report.json"]
+    return replace(result, files=files + [("report.json", export.report_json(report))])
 
 
 def _bed(printer: sizing.Printer) -> str:
     return " x ".join(f"{v:g}" for v in printer.bed_mm)
-
-
-def _with_report(result: ExportResult) -> ExportResult:
-    """``result`` with ``report.json`` rewritten from the (amended) report."""
-    files = [(n, b) for n, b in result.files if n != "report.json"]
-    return replace(result, files=files + [("report.json", export.report_json(result.report))])

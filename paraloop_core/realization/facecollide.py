@@ -38,6 +38,7 @@ from paraloop_core.realization.clearance import (
     pmul,
     segment_distance,
     segments_at,
+    with_home,
 )
 from paraloop_core.realization.collision import pair_collisions
 from paraloop_core.tolerance import TOL
@@ -90,12 +91,6 @@ def _plane_polys(md: MotionData, idx: np.ndarray, tri: np.ndarray, x: np.ndarray
     return np.einsum("bc,bcn->bn", n, xt) - dot(n, tri[:, 0])[:, None] * nrm, nrm
 
 
-def _times(roots: np.ndarray) -> np.ndarray:
-    """Candidate parameters ``(B, K+1)`` (md's s): inf first, then real parts (NaN -> inf)."""
-    r = roots.real.reshape(len(roots), -1)
-    return np.concatenate([np.full((len(r), 1), np.inf), np.where(np.isnan(r), np.inf, r)], 1)
-
-
 def face_segment_hits(md: MotionData, idx: np.ndarray, tri: np.ndarray, seg: np.ndarray
                       ) -> np.ndarray:
     """Vertex-face part of the collision test, mask ``(B,)``: a moving segment endpoint crosses
@@ -130,7 +125,7 @@ def vertex_face_min_distance(md: MotionData, idx: np.ndarray, tri: np.ndarray, x
         return np.concatenate([poly.real_poly_roots(crit, rtol=TOL.zero),
                                poly.real_poly_roots(g, rtol=TOL.zero)], axis=1).real
 
-    cand = _times(chart_roots(md, roots_in))
+    cand = with_home(chart_roots(md, roots_in))
     xx = np.repeat(x[:, None], 2, axis=1)
     moved = segments_at(md, idx, xx, cand)[..., 0, :]
     dist = point_triangle_distance(moved, tri[:, None])

@@ -198,10 +198,8 @@ def chain_displacement_bounds(joint_factors: np.ndarray, a: int, b: int, center:
     Factor m at ``theta`` is ``sin(theta) + cos(theta) (t - h_m)`` scaled, i.e. the pose at
     ``t = tan theta`` (no infinity), a point of the plane ``span(1, h_m)`` whose angle is
     monotone in theta; over a half cell (< pi of theta) its half angle sweeps ``delta_m`` < pi,
-    the angle between the ends. Telescoping the product, a point within ``radius`` of
-    ``center`` moves at most ``sum_m 2 sin(min(delta_m, pi/2)) (dist(y_m, axis_m) + radius)``
-    (``y_m``: the centre carried by the inner factors at the sample). Exact angles: no blow-up
-    where the motion passes close to a singular pose (a fast turn), unlike the speed bound.
+    the angle between the ends (:func:`chain_sweep`). Exact angles: no blow-up where the
+    motion passes close to a singular pose (a fast turn), unlike the speed bound.
     """
     chain = loops.relative_chain(np.asarray(joint_factors, float), a, b)  # (k, 2, 8)
     axes = loops.factor_axes(chain[:, 0])
@@ -215,19 +213,34 @@ def chain_displacement_bounds(joint_factors: np.ndarray, a: int, b: int, center:
         return q / np.linalg.norm(q[..., :4], axis=-1, keepdims=True)
 
     q0 = primal(th)
-    delta = np.zeros(q0.shape[:2])
-    for ends in ((th + prv) / 2, (th + nxt) / 2):
-        rel = dq.qmul(primal(ends)[..., :4], dq.qconj(q0[..., :4]))
-        # q(theta) is continuous (no sign flips) and sweeps < pi over < pi of theta, so the
-        # angle between the ends, in [0, pi], is the sweep
+    move, y = chain_sweep(q0, [primal((th + prv) / 2), primal((th + nxt) / 2)], axes,
+                          np.asarray(center, float)[None, None], radius)
+    size = np.abs(y).max() + radius + np.abs(axes[:, 3:]).sum()
+    return move[:, 0] * (1.0 + 1e-12) + 1e-12 * size  # rounding of the points and angles
+
+
+def chain_sweep(centre: np.ndarray, ends: list[np.ndarray], axes: np.ndarray,
+                points: np.ndarray, radius: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """How far points move over cells of a product of rotation factors, and where they are.
+
+    ``centre`` ``(k, C, 8)``: the k factors (outermost first, unit primal parts, continuous
+    along each cell) at the cell centres; ``ends`` their values at the cell ends; ``axes``
+    ``(k, 6)`` their unit Plücker axes; ``points`` ``(C or 1, P, 3)``. Each factor's half angle
+    sweeps ``delta_m`` (< pi), the angle between centre and end (monotone: a line in its plane
+    ``span(1, axis)``); telescoping the product, a point within ``radius`` of a given one moves
+    at most ``sum_m 2 sin(min(delta_m, pi/2)) (dist(y_m, axis_m) + radius)`` (``y_m``: the point
+    carried by the inner factors at the centre). Returns ``(move (C, P), moved (C, P, 3))``.
+    """
+    delta = np.zeros(centre.shape[:2])
+    for end in ends:
+        rel = dq.qmul(end[..., :4], dq.qconj(centre[..., :4]))
         delta = np.maximum(delta, np.arctan2(np.linalg.norm(rel[..., 1:], axis=-1),
                                              rel[..., 0]))
-    chord = 2.0 * np.sin(np.minimum(delta, np.pi / 2))
-    y = np.broadcast_to(np.asarray(center, float), (len(th), 3))
-    move = np.zeros(len(th))
-    for m in reversed(range(len(chain))):  # innermost factor first
+    chord = 2.0 * np.sin(np.minimum(delta, np.pi / 2))  # (k, C)
+    y = np.broadcast_to(points, (centre.shape[1],) + points.shape[1:])
+    move = np.zeros(y.shape[:2])
+    for m in reversed(range(len(centre))):  # innermost factor first (k <= 3)
         rho = np.linalg.norm(np.cross(y, axes[m, :3]) - axes[m, 3:], axis=-1)
-        move += chord[m] * (rho + radius)
-        y = dq.transform_points(q0[m], y)
-    size = np.abs(y).max() + radius + np.abs(axes[:, 3:]).sum()
-    return move * (1.0 + 1e-12) + 1e-12 * size  # rounding of the composed points and angles
+        move += chord[m][:, None] * (rho + radius)
+        y = dq.transform_points(centre[m][:, None, :], y)
+    return move, y

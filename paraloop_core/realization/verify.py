@@ -37,9 +37,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from paraloop_core.algebra import dq, poly
+from paraloop_core.algebra import poly
 from paraloop_core.linkage import loops
 from paraloop_core.realization.clearance import charts, segment_distance
+from paraloop_core.realization.motion_bound import chain_sweep
 
 #: Wanted gap ``upper - lower`` relative to the pair's distance (on top of the absolute tol).
 RELATIVE = 1e-4
@@ -167,13 +168,6 @@ class _Chain:
     axes: np.ndarray
 
 
-def _half_angle(q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
-    """Angle ``(...)`` between unit quaternions ``(..., 4)`` of one factor (both in its plane
-    ``span(1, axis)``, so ``q1 q0~`` is exact to rounding): half the rotation between them."""
-    rel = dq.qmul(q1, dq.qconj(q0))
-    return np.arctan2(np.linalg.norm(rel[..., 1:], axis=-1), rel[..., 0])
-
-
 def _cells(chain: _Chain, fixed: np.ndarray, moving: np.ndarray, x: np.ndarray,
            r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Distances at the cell centres ``x`` ``(C,)`` (upper, rounding included) and displacement
@@ -184,17 +178,8 @@ def _cells(chain: _Chain, fixed: np.ndarray, moving: np.ndarray, x: np.ndarray,
     pn = np.linalg.norm(q[..., :4], axis=-1, keepdims=True)  # (k, 3, C, 1)
     ok = np.all(pn[..., 0] > 1e-150, axis=(0, 1))
     q = q / np.where(pn > 1e-150, pn, 1.0)
-    centre = q[:, 0]  # (k, C, 8)
-    delta = np.maximum(_half_angle(centre[..., :4], q[:, 1, :, :4]),
-                       _half_angle(centre[..., :4], q[:, 2, :, :4]))
-    chord = 2.0 * np.sin(np.minimum(delta, np.pi / 2))  # (k, C)
-    line_dir, moment = chain.axes[:, :3], chain.axes[:, 3:]
-    y = np.broadcast_to(moving, (len(x), 2, 3))
-    disp = np.zeros((len(x), 2))
-    for m in reversed(range(len(chain.lin))):  # innermost factor first (k <= 3)
-        rho = np.linalg.norm(np.cross(y, line_dir[m]) - moment[m], axis=-1)  # (C, 2)
-        disp += chord[m][:, None] * rho
-        y = dq.transform_points(centre[m][:, None, :], y)
+    disp, y = chain_sweep(q[:, 0], [q[:, 1], q[:, 2]], chain.axes, moving[None])
+    moment = chain.axes[:, 3:]
     # rounding of the composed points and of the chords: far below 1e-12 of the frame's size
     size = np.abs(fixed).max() + np.abs(moving).max() + 2.0 * np.abs(moment).sum()
     slack = 1e-12 * size * (1.0 + disp.max(axis=1) / max(size, 1e-300))
