@@ -94,3 +94,4 @@ def test_lean_back_and_the_notch_warning():
     warn = sizing.notch_warnings(pts, sz, GENERIC)
     assert any("link 1's bar leans back over link 0's boss at joint 0" in w for w in warn)
     assert not any("link 0's bar" in w for w in warn)
+    assert not any("link 1's bar" in w for w in sizing.notch_warnings(pts, sz, GENERIC, (1,)))

@@ -83,7 +83,8 @@ def export_printable(realization: Realization, *,
             f"the parts did not fit printer {printer.name!r} (bed {_bed(printer)} mm) after "
             f"{_FIT_ROUNDS} smaller sizes (down to {sz.size_mm:.0f} mm); use --size-mm or a "
             "larger bed", "bad-parameters")
-    warnings += sizing.notch_warnings(real.points, sz, printer)
+    no_bar = (3,) if options.get("effector") is not None else ()  # link 3 is P and its bars
+    warnings += sizing.notch_warnings(real.points, sz, printer, no_bar)
     if not fit.all():
         warnings.append(f"parts {np.flatnonzero(~fit).tolist()} do not fit the bed "
                         f"{_bed(printer)} mm at the requested {sz.size_mm:.0f} mm")

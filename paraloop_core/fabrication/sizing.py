@@ -167,13 +167,17 @@ def lean_back(points: np.ndarray) -> np.ndarray:
     return out
 
 
-def notch_warnings(points: np.ndarray, sz: Sizing, printer: Printer) -> list[str]:
-    """One warning per bar notched by a joint zone at this size (:func:`lean_back`)."""
+def notch_warnings(points: np.ndarray, sz: Sizing, printer: Printer,
+                   no_bar: tuple[int, ...] = ()) -> list[str]:
+    """One warning per bar notched by a joint zone at this size (:func:`lean_back`); links
+    ``no_bar`` have no bar ``S_iE_i`` (link 3 with an end-effector)."""
     need = sz.bar_radius_mm + sz.boss_radius_mm + printer.clearance_mm
     lb = lean_back(points) * sz.scale
     out = []
     for i, side in np.argwhere(lb < need):
         link, other = ((i + 1) % 6, i) if side == 0 else (i, (i + 1) % 6)
+        if link in no_bar:
+            continue
         out.append(f"link {link}'s bar leans back over link {other}'s boss at joint {i} and is "
                    f"notched by the joint zone (it passes {lb[i, side]:.2f} mm from the axis, "
                    f"{need:.2f} mm would clear it): with these radii about "
