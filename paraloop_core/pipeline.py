@@ -19,8 +19,11 @@ from paraloop_core.errors import RealizationError
 from paraloop_core.linkage import loops, singularity
 from paraloop_core.motion import fourpose, metric
 
-#: Seconds the realization of one design may take, fallbacks included.
-REALIZATION_TIME_LIMIT = 60.0
+#: Work units (:meth:`realize.Search.work`, about 0.3 ms each on one core) of the realization
+#: attempts: the design's own loop and parameters first, then each fallback. A budget, not a
+#: clock: the answer is the same on every machine, under any load and at every scale.
+FIRST_ATTEMPT_WORK = 40_000
+FALLBACK_WORK = 12_000
 RESULT_FORMAT = "paraloop-result"
 RESULT_VERSION = 1
 
@@ -56,45 +59,61 @@ def design_poses(design: Design) -> np.ndarray:
     return dq.from_pos_wxyz(pos, wxyz)
 
 
-def inertia_of(design: Design) -> metric.Inertia:
+def inertia_of(design: Design, unit: float = 1.0) -> metric.Inertia:
+    """The design's inertia ellipsoid, lengths in ``unit`` design units."""
     s = design.inertia
-    return metric.Inertia(s.center, s.axes, s.semi_axes, s.weight)
+    return metric.Inertia(s.center / unit, s.axes, s.semi_axes / unit, s.weight)
 
 
-def _four_pose(design: Design, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray, float | None]:
-    """Relative monic cubic (S_0 frame), visiting parameters and the mu used."""
+def unit_length(poses: np.ndarray) -> float:
+    """Characteristic length of unit poses ``(m, 8)``: the root mean square distance of the
+    targets from the origin (1 when all sit at it). Motion design runs in this unit, so a
+    uniform change of the design's unit changes no digit of the answer beyond rounding."""
+    rms = float(np.sqrt(np.mean(np.sum(dq.translation_of(poses) ** 2, axis=-1))))
+    return rms if np.isfinite(rms) and rms > 0 else 1.0
+
+
+def _four_pose(design: Design, poses: np.ndarray, unit: float
+               ) -> tuple[np.ndarray, np.ndarray, float | None]:
+    """Relative monic cubic (S_0 frame) of ``poses`` given in ``unit`` design units, the
+    visiting parameters and the mu used."""
     fams = fourpose.four_pose_families(poses)
     m = design.motion
     mu = m.mu
     if m.criterion is not None:
         from paraloop_core.motion import selection  # only needed when a criterion picks mu
 
-        mu, _ = selection.best_mu(fams, m.family, m.criterion, **_criterion_params(design))
+        mu, _ = selection.best_mu(fams, m.family, m.criterion,
+                                  **_criterion_params(design, unit))
     c_rel = fourpose.four_pose_motion(fams, m.family, mu)
     return c_rel, np.concatenate([[np.inf], fams.t[m.family]]), mu
 
 
-def _criterion_params(design: Design) -> dict[str, Any]:
-    """Parameters of the design's selection criterion (validated by the design loader)."""
+def _criterion_params(design: Design, unit: float) -> dict[str, Any]:
+    """Parameters of the design's selection criterion (validated by the design loader), lengths
+    in ``unit`` design units."""
     m = design.motion
     if m.criterion == "length":
-        return {"inertia": inertia_of(design)}
+        return {"inertia": inertia_of(design, unit)}
     if m.criterion in ("base-axes", "end-axes"):
-        return {"loop": design.loop, "points": m.targets}
-    extra = np.array([dq.from_pos_wxyz(p.position, p.wxyz) for p in m.extra_poses])
-    return {"poses": extra, "inertia": inertia_of(design)}
+        return {"loop": design.loop, "points": None if m.targets is None else m.targets / unit}
+    extra = np.array([dq.from_pos_wxyz(p.position / unit, p.wxyz) for p in m.extra_poses])
+    return {"poses": extra, "inertia": inertia_of(design, unit)}
 
 
-def solve(design: Design, *, realize: bool = True, other_loops: bool = True,
-          time_limit: float = REALIZATION_TIME_LIMIT) -> Solution:
+def solve(design: Design, *, realize: bool = True, other_loops: bool = True) -> Solution:
     """Compute the solution of a design; raises ParaloopError subclasses (ValueError) with a
     clear message for degenerate poses, non-generic motions or impossible realization
     parameters. A realization that is not found is not an error: the solution then carries
     ``realization_report['status'] == 'not_found'`` with the reason and the attempts (the
-    design's loop, thinner bars, then with ``other_loops`` the other loops; ``time_limit``
-    seconds in all)."""
+    design's loop, thinner bars, then with ``other_loops`` the other loops, each with its
+    work budget: :data:`FIRST_ATTEMPT_WORK`, :data:`FALLBACK_WORK`).
+
+    Four-pose motions are designed in :func:`unit_length` (the factorization and the
+    realization condition themselves); the singularity measure is unit-free in it too."""
     check_pose_count(design)
     poses = design_poses(design)
+    unit = unit_length(poses)
     fit = None
     if design.motion.method == "fit":
         from paraloop_core.motion import evolution  # only needed for fitted motions
@@ -103,18 +122,19 @@ def solve(design: Design, *, realize: bool = True, other_loops: bool = True,
                                    evolution.evolution_settings(design.evolution))
         c_rel, pose_t, mu, reference = fit.motion_rel, fit.closest_t, None, fit.reference
     else:
-        c_rel, pose_t, mu = _four_pose(design, poses)
+        c_rel, pose_t, mu = _four_pose(design, dq.scale_lengths(poses, 1.0 / unit), unit)
+        c_rel = dq.scale_lengths(c_rel, unit)
         reference = poses[0]
     monic = fourpose.world_motion(reference, c_rel)
     facts = factor.all_factorizations(monic)
     loop_list = loops.nine_loops(facts)
     jf = np.stack([lp.joint_factors for lp in loop_list])
-    s_min, s_t = singularity.singularity_min(jf)
+    s_min, s_t = singularity.singularity_min(jf, length=unit)
     motion = dq.mul(monic, reference)
     sol = Solution(design, motion, monic, reference, pose_t, mu, facts, loop_list, s_min, s_t,
                    fit=fit)
     if realize and design.realization.enabled:
-        sol = _with_realization(sol, other_loops, time_limit)
+        sol = _with_realization(sol, other_loops)
     return sol
 
 
@@ -132,23 +152,21 @@ def _attempts(sol: Solution, other_loops: bool) -> list[tuple[int, float, float]
     return first + [(k, 1.0, 1.0) for k in order]
 
 
-def _with_realization(sol: Solution, other_loops: bool, time_limit: float) -> Solution:
+def _with_realization(sol: Solution, other_loops: bool) -> Solution:
     """The first realization of :func:`_attempts` (``status: found``; the solution's loop is
     the realized one), or the solution with a ``not_found`` report (reason, attempts)."""
-    import time
     from dataclasses import replace
 
     from paraloop_core.realization import realize as realize_mod
 
     r = sol.design.realization
-    deadline = time.monotonic() + time_limit
     tried: list[dict[str, Any]] = []
-    for loop, rho_f, d_f in _attempts(sol, other_loops):
+    for n, (loop, rho_f, d_f) in enumerate(_attempts(sol, other_loops)):
         attempt = replace(sol, design=replace(sol.design, loop=loop))
         params = dict(p=r.p, rho=None if r.rho is None else r.rho * rho_f,
                       d=None if r.d is None else r.d * d_f, d_fraction=r.d_fraction * d_f,
                       rho_fraction=r.rho_fraction * rho_f / d_f, fixed=dict(r.fixed),
-                      max_k=r.max_k, deadline=deadline)
+                      max_k=r.max_k, budget=FALLBACK_WORK if n else FIRST_ATTEMPT_WORK)
         try:
             if sol.design.end_effector is None:
                 real = realize_mod.realize(attempt.loop.joint_factors, **params)
@@ -165,8 +183,6 @@ def _with_realization(sol: Solution, other_loops: bool, time_limit: float) -> So
                 raise  # the user's own parameters are impossible: say so, do not guess
             tried.append({"loop": loop, "rho_factor": rho_f, "d_factor": d_f,
                           "reason": exc.reason, "message": str(exc)})
-            if exc.reason == "time-limit":
-                break
             continue
         report = {"status": "found", "attempts": tried,
                   "fallback": None if not tried else (
@@ -175,8 +191,9 @@ def _with_realization(sol: Solution, other_loops: bool, time_limit: float) -> So
         return replace(attempt, realization=real, end_effector=ee, realization_report=report)
     last = tried[-1] if tried else {"message": "no attempt"}
     report = {"status": "not_found", "attempts": tried,
-              "reason": f"no collision-free realization within {time_limit:g} s and "
-                        f"{len(tried)} attempts; last: {last['message']}",
+              "reason": f"no collision-free realization in {len(tried)} attempts (work "
+                        f"budgets {FIRST_ATTEMPT_WORK} + {FALLBACK_WORK} each further); last: "
+                        f"{last['message']}",
               "advice": "raise realization.max_k, lower rho/d (realization.rho_fraction, "
                         "d_fraction), fix fewer vertices, or choose another loop or mu"}
     return replace(sol, realization_report=report)

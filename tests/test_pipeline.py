@@ -98,7 +98,7 @@ def test_criteria_choose_mu_through_the_design(criterion):
     chosen = replace(d, motion=motion)
     sol = pipeline.solve(chosen, realize=False)
     fams = fourpose.four_pose_families(pipeline.design_poses(d))
-    params = pipeline._criterion_params(chosen)
+    params = pipeline._criterion_params(chosen, 1.0)  # design units: the argmin is unit-free
     best = selection.score_mu(fams, d.motion.family, np.array([sol.mu]), criterion, **params)
     fixed = selection.score_mu(fams, d.motion.family, np.array([1.5]), criterion, **params)
     assert best[0] <= fixed[0] + 1e-9
@@ -175,3 +175,25 @@ def test_rounded_inertia_axes_in_a_file_are_accepted_and_orthonormalized():
     inertia = pipeline.inertia_of(d)
     assert np.allclose(inertia.axes @ inertia.axes.T, np.eye(3), atol=1e-14)
     assert pipeline.solve(d, realize=False).mu is not None
+
+
+def test_a_change_of_unit_changes_no_answer():
+    """Positions x 2^-20 and x 1e8: the same mu, visiting parameters, loop, search counts and
+    relative clearance; the singularity measure is unit-free."""
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).parent))
+    from independent.generic_designs import random_design
+
+    def answer(scale):
+        sol = pipeline.solve(design.design_from_dict(random_design(5, scale)))
+        r = sol.realization
+        return sol, (sol.design.loop, r.stats["k"], r.stats["work"]), r.min_clearance / r.length
+
+    base, key, clear = answer(1.0)
+    for scale in (2.0**-20, 1e8):
+        sol, key_s, clear_s = answer(scale)
+        assert key_s == key and sol.mu == base.mu
+        assert np.allclose(sol.pose_parameters, base.pose_parameters, rtol=1e-9)
+        assert np.allclose(sol.singularity, base.singularity, rtol=1e-6)
+        assert abs(clear_s - clear) <= 1e-7 * clear

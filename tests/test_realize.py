@@ -190,3 +190,29 @@ def test_scaling_the_loop_scales_the_realization():
     assert np.allclose(b.points, 1000.0 * a.points, rtol=1e-9, atol=1e-9)
     assert np.allclose(b.pair_distance, 1000.0 * a.pair_distance, rtol=1e-9)
     assert a.stats == b.stats
+
+
+@pytest.mark.parametrize("factor", [2.0**-20, 2.0**30])
+def test_search_runs_in_its_own_unit(factor):
+    """A power-of-two change of unit is exact in float64: the search sees the same numbers
+    (it works in :func:`realize.unit_length`), so every decision and count is identical."""
+    jf = table1.random_loops(7, 2)[0, 1]
+    a, b = realize.realize(jf), realize.realize(dq.scale_lengths(jf, factor))
+    assert a.stats == b.stats and np.array_equal(a.offsets, b.offsets)
+    assert np.array_equal(b.points, factor * a.points)
+    assert np.array_equal(b.pair_lower, factor * a.pair_lower)
+    assert b.radius == factor * a.radius and b.tolerance == factor * a.tolerance
+
+
+def test_work_budget_stops_the_search_deterministically():
+    jf = table1.random_loops(7, 2)[0, 1]
+    full = realize.realize(jf)
+    assert full.stats["work"] >= full.stats["collision_checks_sequential"]
+    assert realize.realize(jf, budget=full.stats["work"]).stats == full.stats
+    errors = []
+    for _ in range(2):
+        with pytest.raises(RealizationError) as err:
+            # checked before each candidate: the last one's thin checks alone exceed this
+            realize.realize(jf, budget=full.stats["collision_checks_sequential"] - 1)
+        errors.append(str(err.value))
+    assert err.value.reason == "budget" and errors[0] == errors[1]

@@ -128,6 +128,15 @@ def normalize(q: np.ndarray) -> np.ndarray:
     return q * sign / n
 
 
+def scale_lengths(q: np.ndarray, factor: float | np.ndarray) -> np.ndarray:
+    """The same displacements ``(..., 8)`` in a length unit ``1 / factor`` times the old one
+    (translations and moments times ``factor``): the dual part times ``factor``. Applies
+    coefficient-wise to motion polynomials ``(..., n+1, 8)`` too."""
+    q = _as_dq(q)
+    return np.concatenate([q[..., :4], q[..., 4:] * np.asarray(factor, np.float64)[..., None]],
+                          axis=-1)
+
+
 def translation_of(q: np.ndarray) -> np.ndarray:
     """Translation ``(..., 3)`` of a (not necessarily unit) pose: ``2 vec(D P~) / |P|^2``."""
     p, d = q[..., :4], q[..., 4:]

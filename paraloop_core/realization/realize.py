@@ -10,9 +10,8 @@ Sec. 5.2: cylindrical design spaces from the certificate.
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -34,6 +33,11 @@ from paraloop_core.realization.polyline import polyline_length, shortest_polylin
 #: Wanted gap between reported and proven pair minima, as a fraction of the polyline length l
 #: (plus :data:`verify.RELATIVE` of the pair's own distance).
 VERIFY_TOL = 1e-6
+#: Work units of one step-4 offset sequence examined and of one certificate cell, in thin
+#: polyline checks (the unit: about 0.3 ms on one core); measured, so that a budget is
+#: roughly a time, the same on every machine and at every scale.
+SEQUENCE_WORK = 6
+CELLS_PER_WORK = 20
 
 
 def joint_bounds(jf: np.ndarray, points: np.ndarray, pairs: np.ndarray, length: float
@@ -78,6 +82,18 @@ class Realization:
     joint_pairs: np.ndarray
     joint_lower: np.ndarray
     tolerance: float
+
+    def scaled(self, factor: float, joint_factors: np.ndarray) -> Realization:
+        """The same realization in a length unit ``1 / factor`` times this one's, on
+        ``joint_factors`` (the loop in that unit): every length times ``factor``."""
+        f = float(factor)
+        return replace(self, joint_factors=joint_factors, points=self.points * f,
+                       radius=self.radius * f, separation=self.separation * f,
+                       length=self.length * f, thin_initial=self.thin_initial * f,
+                       thin=self.thin * f, pair_distance=self.pair_distance * f,
+                       design_space_radii=self.design_space_radii * f,
+                       pair_lower=self.pair_lower * f, joint_lower=self.joint_lower * f,
+                       tolerance=self.tolerance * f)
 
     @property
     def min_clearance(self) -> float:
@@ -181,6 +197,17 @@ def _free_candidates(n: int, colliding: Callable[[int, int], np.ndarray]) -> Ite
         start, size = stop, size * 2
 
 
+def unit_length(joint_factors: np.ndarray) -> float:
+    """Length unit of the search of a loop ``(6, 8)``: the largest distance of a joint axis
+    from the origin (1 when every axis passes through it: a spherical loop, refused later).
+    The search runs in this unit, so its thresholds and its answer do not depend on the
+    design's unit."""
+    jf = np.asarray(joint_factors, dtype=np.float64)
+    dist = np.linalg.norm(jf[:, 5:8], axis=-1) / np.linalg.norm(jf[:, 1:4], axis=-1)
+    unit = float(dist.max())
+    return unit if np.isfinite(unit) and unit > 0 else 1.0
+
+
 def check_params(p: float, rho: float, d: float, max_k: int) -> None:
     bad = []
     if not (np.isfinite(p) and p > 0):
@@ -200,7 +227,8 @@ class Search:
     levels, candidate order, thin checks, step 4 and the steps back to step 3; the hooks
     (:meth:`initial`, :meth:`start`, :meth:`lengths`, :meth:`colliding`, :meth:`step4`,
     :meth:`result`, :attr:`cap_message`) are what :mod:`realize_ee` overrides for an
-    end-effector."""
+    end-effector. Lengths inside are in :func:`unit_length` (``self.unit`` design units):
+    ``self.jf`` and every hook work in it; :meth:`result` answers in design units."""
 
     #: ``cap-reached`` message; ``str.format`` fields max_k, p, d, rho, checks, steps_back.
     cap_message = ("no collision-free realization with k <= {max_k} (p = {p}, d = {d:.4g}, "
@@ -212,8 +240,11 @@ class Search:
         if fixed is not None and len(fixed) >= 6:
             raise RealizationError("at most five vertices can be fixed (the search shifts the "
                                    f"free ones), got {len(fixed)}", "bad-parameters")
-        self.jf = np.asarray(joint_factors, dtype=np.float64)
-        self.fixed = fixed
+        self.jf_design = np.asarray(joint_factors, dtype=np.float64)
+        self.unit = unit_length(self.jf_design)
+        self.jf = dq.scale_lengths(self.jf_design, 1.0 / self.unit)
+        self.fixed = None if fixed is None else {i: v / self.unit for i, v in fixed.items()}
+        self.cells = 0
 
     def initial(self) -> tuple[np.ndarray, float]:
         """Step 1: the initial polyline ``(6, 3)`` and its length l."""
@@ -249,11 +280,20 @@ class Search:
         consecutive bars are bounded for the report (:func:`joint_bounds`)."""
         points = step.points(seq)
         _, t = step.certificate(seq)
-        pairs = verify.polyline_bounds(self.jf, points, OFFSET_PAIRS, VERIFY_TOL * self.length,
-                                       t, need=2.0 * self.rho)
-        if pairs.lower.min() < 2.0 * self.rho:
+        return self.bounds(points, OFFSET_PAIRS, verify.JOINT_PAIRS, t)
+
+    def bounds(self, points: np.ndarray, pairs: np.ndarray, joint_pairs: np.ndarray,
+               t: np.ndarray) -> object | None:
+        """:meth:`verify` of the 12-vertex polyline ``points`` with its certified ``pairs``,
+        consecutive bars ``joint_pairs`` and exact minima ``t``; counts the cells."""
+        bounds = verify.polyline_bounds(self.jf, points, pairs, VERIFY_TOL * self.length, t,
+                                        need=2.0 * self.rho)
+        self.cells += int(bounds.cells.sum())
+        if bounds.lower.min() < 2.0 * self.rho:
             return None
-        return pairs, joint_bounds(self.jf, points, verify.JOINT_PAIRS, self.length)
+        joints = joint_bounds(self.jf, points, joint_pairs, self.length)
+        self.cells += int(joints.cells.sum())
+        return bounds, joints
 
     def result(self, step: OffsetSearch, seq: int, tau: np.ndarray, v: np.ndarray,
                stats: dict, proof: object) -> Realization:
@@ -267,42 +307,47 @@ class Search:
                            float(self.p), tau, OFFSET_WAYS[DIGITS[seq]], self.v0, v,
                            OFFSET_PAIRS, dist, pairs.t, design_space_radii(pairs.lower, self.rho),
                            stats, pairs.lower, verify.JOINT_PAIRS, joints.lower,
-                           VERIFY_TOL * self.length)
+                           VERIFY_TOL * self.length).scaled(self.unit, self.jf_design)
 
     def run(self, *, p: float, rho: float | None, d: float | None, d_fraction: float,
-            rho_fraction: float, max_k: int, deadline: float | None = None):
+            rho_fraction: float, max_k: int, budget: int | None = None):
         """Parameters as :func:`realize`; the :meth:`result` of the first success.
 
-        ``deadline`` (``time.monotonic()`` value): past it the search stops with reason
-        ``time-limit`` (checked between candidates)."""
+        ``budget``: work units (:meth:`work`) after which the search stops with reason
+        ``budget`` (checked between candidates): deterministic, unlike a wall-clock limit."""
+        u = self.unit
         self.v0, self.length = v0, length = self.initial()
-        self.d = d = d_fraction * length if d is None else d
-        self.rho = rho = rho_fraction * d if rho is None else rho
+        self.d = d = d_fraction * length if d is None else d / u
+        self.rho = rho = rho_fraction * d if rho is None else rho / u
         self.p = p
-        check_params(p, rho, d, max_k)
+        check_params(p, rho * u, d * u, max_k)
         self.start()
         free = np.array([i not in (self.fixed or {}) for i in range(6)])
         patterns = DIGITS[np.all(DIGITS[:, ~free] == 0, axis=1)][1:]  # 3^(6-f) - 1, index order
         tau_unit = np.where(patterns == 2, -1, patterns)
         checks = steps_back = tried = refuted = 0
+        where = {"p": p, "d": d * u, "rho": rho * u}
+
+        def over_budget(k: int, checked: int, what: str) -> None:
+            if budget is not None and self.work(checked, tried) > budget:
+                raise RealizationError(
+                    f"work budget of {budget} units used up at k = {k} {what} (p = {p}, "
+                    f"d = {d * u:.4g}, rho = {rho * u:.4g}): {checked} thin polylines checked, "
+                    f"{steps_back} collision-free ones failed the 2 rho clearance, {refuted} "
+                    "refuted by the sound check", "budget")
+
         for k in range(max_k + 1):
+            over_budget(k, checks, "before the level")
             tau = np.zeros((1, 6), int) if k == 0 else k * tau_unit
             polys = v0 + (tau * length / p)[..., None] * self.lp.u
             order = np.argsort(self.lengths(polys), kind="stable")
             tau, polys = tau[order], polys[order]
             for pos in _free_candidates(len(polys), self.colliding(k, tau, polys)):
-                if deadline is not None and time.monotonic() > deadline:
-                    raise RealizationError(
-                        f"time limit reached at k = {k} (p = {p}, d = {d:.4g}, rho = {rho:.4g}):"
-                        f" {checks + pos} thin polylines checked, {steps_back} collision-free "
-                        "ones failed the 2 rho clearance", "time-limit")
+                over_budget(k, checks + pos + 1, "")
                 step = self.step4(polys[pos])
                 order = sequence_order(np.sign(tau[pos]))
                 while True:  # the first sequence the sound check (verify) confirms
-                    if deadline is not None and time.monotonic() > deadline:
-                        raise RealizationError(
-                            f"time limit reached at k = {k} while verifying step-4 candidates "
-                            f"({refuted} refuted by the sound check)", "time-limit")
+                    over_budget(k, checks + pos + 1, "while verifying step-4 candidates")
                     seq, n_seq = step.run(order)
                     tried += n_seq
                     proof = None if seq is None else self.verify(step, seq)
@@ -319,11 +364,17 @@ class Search:
                          "steps_back": steps_back, "min_distance_computations": tried,
                          "offset_rank": min(n_seq - 1, 2),
                          "collision_checks_sequential": checks + pos + 1,
-                         "refuted_by_verification": refuted}
+                         "refuted_by_verification": refuted,
+                         "work": self.work(checks + pos + 1, tried)}
                 return self.result(step, seq, tau[pos], polys[pos], stats, proof)
             checks += len(polys)
         raise RealizationError(self.cap_message.format(
-            max_k=max_k, p=p, d=d, rho=rho, checks=checks, steps_back=steps_back), "cap-reached")
+            max_k=max_k, checks=checks, steps_back=steps_back, **where), "cap-reached")
+
+    def work(self, checked: int, sequences: int) -> int:
+        """Work units so far: thin polylines ``checked``, step-4 ``sequences`` examined (each
+        :data:`SEQUENCE_WORK`) and certificate cells (:data:`CELLS_PER_WORK` per unit)."""
+        return checked + SEQUENCE_WORK * sequences + self.cells // CELLS_PER_WORK
 
 
 def realize(
@@ -336,7 +387,7 @@ def realize(
     rho_fraction: float = 0.25,
     fixed: dict[int, float] | None = None,
     max_k: int = 50,
-    deadline: float | None = None,
+    budget: int | None = None,
 ) -> Realization:
     """Collision-free realization of the loop ``joint_factors`` ``(6, 8)`` (Sec. 5.1).
 
@@ -344,9 +395,9 @@ def realize(
     on each axis, bars have radius ``rho`` (default ``rho_fraction * d``), shifts are
     ``tau l / p``; ``fixed`` maps a vertex index to its held position along its axis (design
     units from the axis foot point). Raises :class:`RealizationError` (``bad-parameters``,
-    ``singular-loop``, ``cap-reached`` when ``k`` would exceed ``max_k``, ``time-limit`` past
-    ``deadline``, a ``time.monotonic()`` value).
+    ``singular-loop``, ``cap-reached`` when ``k`` would exceed ``max_k``, ``budget`` past
+    ``budget`` work units, see :meth:`Search.work`).
     """
     return Search(joint_factors, fixed).run(p=p, rho=rho, d=d, d_fraction=d_fraction,
                                             rho_fraction=rho_fraction, max_k=max_k,
-                                            deadline=deadline)
+                                            budget=budget)

@@ -14,6 +14,7 @@ of :class:`_EffectorSearch`.
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import replace
 
 import numpy as np
 
@@ -45,7 +46,7 @@ from paraloop_core.realization.offsetting import (
     LoopMotions,
     OffsetSearch,
 )
-from paraloop_core.realization.realize import VERIFY_TOL, Realization, Search, joint_bounds
+from paraloop_core.realization.realize import VERIFY_TOL, Realization, Search
 
 #: Consecutive-bar pairs without the replaced end-link bar ``S_3E_3`` (edge 6).
 _EE_JOINT_PAIRS = verify.JOINT_PAIRS[~np.any(verify.JOINT_PAIRS[:, :2] == 6, axis=1)]
@@ -251,8 +252,10 @@ class _EffectorSearch(Search):
     def __init__(self, joint_factors: np.ndarray, fixed: dict[int, float] | None,
                  effector: EndEffector, ee_clearance: float | None):
         super().__init__(joint_factors, fixed)
-        self.ee, self.ee_clearance = effector, ee_clearance
-        self.anchors = effector.vertices[[effector.L, effector.R]]
+        self.ee_design = effector
+        self.ee = replace(effector, vertices=effector.vertices / self.unit)
+        self.ee_clearance = None if ee_clearance is None else ee_clearance / self.unit
+        self.anchors = self.ee.vertices[[effector.L, effector.R]]
 
     def initial(self) -> tuple[np.ndarray, float]:
         v0, _ = initial_polyline(self.jf, self.anchors, self.fixed)
@@ -261,8 +264,8 @@ class _EffectorSearch(Search):
     def start(self) -> None:
         self.clearance = self.rho if self.ee_clearance is None else self.ee_clearance
         if not (np.isfinite(self.clearance) and self.clearance >= 0):
-            raise RealizationError(f"ee_clearance must be >= 0, got {self.clearance!r}",
-                                   "bad-parameters")
+            raise RealizationError(f"ee_clearance must be >= 0, got "
+                                   f"{self.clearance * self.unit!r}", "bad-parameters")
         super().start()
         self.mot = PairMotions(self.jf, {r[2] for r in THIN_ROWS} | {r[2] for r in STEP4_ROWS})
 
@@ -292,11 +295,7 @@ class _EffectorSearch(Search):
         codes = step.codes(np.array([seq]))[0]
         t = step.t[np.arange(len(STEP4_ROWS)), codes][:len(BASE_PAIRS)]  # base rows first
         points = step.search.points(seq)
-        tol = VERIFY_TOL * self.length
-        pairs = verify.polyline_bounds(self.jf, points, BASE_PAIRS, tol, t, need=2.0 * self.rho)
-        if pairs.lower.min() < 2.0 * self.rho:
-            return None
-        return pairs, joint_bounds(self.jf, points, _EE_JOINT_PAIRS, self.length)
+        return self.bounds(points, BASE_PAIRS, _EE_JOINT_PAIRS, t)
 
     def result(self, step: _Step4, seq: int, tau: np.ndarray, v: np.ndarray, stats: dict,
                proof: object) -> EndEffectorRealization:
@@ -315,10 +314,12 @@ class _EffectorSearch(Search):
                            dist[base], t[base], design_space_radii(lower, self.rho), stats,
                            pairs.lower, _EE_JOINT_PAIRS, joints.lower, VERIFY_TOL * self.length)
         ee = ~base
+        u = self.unit
         return EndEffectorRealization(
-            real, self.ee, tuple(r[3] for r, e in zip(STEP4_ROWS, ee, strict=True) if e),
-            np.array([r[2] for r in STEP4_ROWS])[ee], dist[ee], t[ee],
-            step.exact[rows, codes][ee], step.need[ee])
+            real.scaled(u, self.jf_design), self.ee_design,
+            tuple(r[3] for r, e in zip(STEP4_ROWS, ee, strict=True) if e),
+            np.array([r[2] for r in STEP4_ROWS])[ee], dist[ee] * u, t[ee],
+            step.exact[rows, codes][ee], step.need[ee] * u)
 
 
 def realize_with_effector(
@@ -333,7 +334,7 @@ def realize_with_effector(
     fixed: dict[int, float] | None = None,
     max_k: int = 50,
     ee_clearance: float | None = None,
-    deadline: float | None = None,
+    budget: int | None = None,
 ) -> EndEffectorRealization:
     """Collision-free realization of ``joint_factors`` ``(6, 8)`` whose end link carries
     ``effector`` (from :func:`endeffector.attach`). Parameters as :func:`realize.realize`
@@ -342,4 +343,4 @@ def realize_with_effector(
     with the end link routed ``V_2 L R V_3``. Raises :class:`RealizationError`."""
     search = _EffectorSearch(joint_factors, fixed, effector, ee_clearance)
     return search.run(p=p, rho=rho, d=d, d_fraction=d_fraction, rho_fraction=rho_fraction,
-                      max_k=max_k, deadline=deadline)
+                      max_k=max_k, budget=budget)
