@@ -251,8 +251,10 @@ def result_to_dict(sol: Solution) -> dict[str, Any]:
     a, b, length = factor.conditioning_batch(sol.monic)
     out["conditioning"] = {
         "a": float(a), "b": float(b), "length": float(length),
-        "meaning": "factorization and certificate work in s with t = a s + b (norm roots "
-                   "round s = i) and lengths divided by 'length'; every t here is the design's",
+        "meaning": "the factorization works in s with t = a s + b (norm roots round s = i) "
+                   "and lengths divided by 'length'; the certificate in the same s (from the "
+                   "loop's norm roots) and its own unit; every t and length here is the "
+                   "design's",
     }
     out["motion"]["method"] = sol.design.motion.method
     if sol.fit is not None:

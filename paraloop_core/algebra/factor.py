@@ -42,13 +42,18 @@ def conditioning_batch(c_monic: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.
     so conditioned results map back exactly; the tests of genericity done in the conditioned
     frame are invariant under affine reparametrization and a change of length unit.
     """
+    return _conditioning(c_monic)[1:]
+
+
+def _conditioning(c_monic: np.ndarray) -> tuple[np.ndarray, ...]:
+    """``(C(a s + b) / a^n, a, b, length)`` of :func:`conditioning_batch`."""
     n = c_monic.shape[-2] - 1
     b, a = hyperbolic_center(_upper_roots(poly.norm_poly(c_monic), n))
     cs = _affine(c_monic, a, b)
     primal = np.abs(cs[..., :4]).max(axis=(-2, -1))
     dual = np.abs(cs[..., 4:]).max(axis=(-2, -1))
     length = np.where(dual > 0, dual / np.maximum(primal, 1e-300), 1.0)
-    return a, b, length
+    return cs, a, b, length
 
 
 def hyperbolic_center(z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -234,10 +239,7 @@ def all_factorizations_batch(c_monic: np.ndarray) -> Factorizations:
     c_monic = np.asarray(c_monic, dtype=np.float64)
     if c_monic.shape[-2:] != (4, 8):
         raise ValueError(f"a cubic motion polynomial must be (..., 4, 8), got {c_monic.shape}")
-    cs, a, b, unit = _conditioned(c_monic)
-    quads, quads_s, code = _labelled_quadratics(cs, a, b)
-    h, hcode = factorize_batch(cs, quads_s)
-    code = np.where(code == 0, hcode, code)
+    h, quads, code, a, b, unit = _hss_conditioned(c_monic)
     out = [None] * 6
     out[0] = h
     for src, pos, dst in _FLIP_PLAN:
@@ -249,13 +251,30 @@ def all_factorizations_batch(c_monic: np.ndarray) -> Factorizations:
     return Factorizations(_unconditioned(np.stack(out, axis=-3), a, b, unit), quads, code)
 
 
+def hss_batch(c_monic: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """One factorization (HSS13a, norm order A, B, C) ``(..., n, 8)`` of monic ``C``
+    ``(..., n+1, 8)``, computed in the conditioned frame like :func:`all_factorizations_batch`,
+    and a reason code ``(...)`` (float64's suspicion: nonzero items are meaningless)."""
+    h, _, code, a, b, unit = _hss_conditioned(np.asarray(c_monic, dtype=np.float64))
+    return _unconditioned(h, a, b, unit), code
+
+
+def _hss_conditioned(c_monic: np.ndarray) -> tuple[np.ndarray, ...]:
+    """``(h_s, quads, code, a, b, unit)``: HSS factors in the conditioned frame, the labelled
+    norm quadratics in t, the code, and the map back (:func:`_unconditioned`)."""
+    cs, a, b, unit = _conditioned(c_monic)
+    quads, quads_s, code = _labelled_quadratics(cs, a, b)
+    h, hcode = factorize_batch(cs, quads_s)
+    return h, quads, np.where(code == 0, hcode, code), a, b, unit
+
+
 def _conditioned(c_monic: np.ndarray) -> tuple[np.ndarray, ...]:
     """``(cs, a, b, unit)``: the conditioned cubic ``cs`` (parameter ``s``, ``t = a s + b``,
     dual part multiplied by ``unit[4:]``) of :func:`conditioning_batch`."""
-    a, b, length = conditioning_batch(c_monic)
+    cs, a, b, length = _conditioning(c_monic)
     unit = np.concatenate([np.ones(a.shape + (4,)), np.ones(a.shape + (4,)) / length[..., None]],
                           axis=-1)
-    return _affine(c_monic, a, b) * unit[..., None, :], a, b, unit
+    return cs * unit[..., None, :], a, b, unit
 
 
 def _unconditioned(h: np.ndarray, a: np.ndarray, b: np.ndarray, unit: np.ndarray) -> np.ndarray:

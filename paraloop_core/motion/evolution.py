@@ -146,9 +146,8 @@ def _score_interpolants(prob: Problem, c: np.ndarray, ordered: bool):
     """Factors ``(K, 3, 8)`` and cost ``(K,)`` of candidate cubics ``(K, 4, 8)``: summed squared
     closest distances, inf where not factorizable (or, if any is, not in order)."""
     t, d2 = closest.closest_pose(c[:, None], prob.targets[None, 1:], prob.inertia, robust=False)
-    quads, code = factor.norm_quadratics_batch(c)
-    h, hcode = factor.factorize_batch(c, quads)
-    cost = np.where((code == 0) & (hcode == 0), np.sum(d2, -1), np.inf)
+    h, code = factor.hss_batch(c)
+    cost = np.where(code == 0, np.sum(d2, -1), np.inf)
     if ordered:
         in_order = cyclic_order(np.concatenate([np.full((len(t), 1), np.inf), t], -1)) != 0
         cost = np.where(in_order, cost, cost + np.where(np.any(in_order), np.inf, 0.0))

@@ -346,10 +346,12 @@ class Search:
                 over_budget(k, checks + pos + 1, "")
                 step = self.step4(polys[pos])
                 order = sequence_order(np.sign(tau[pos]))
+                examined = 0  # sequences of this candidate, across refutations
                 while True:  # the first sequence the sound check (verify) confirms
                     over_budget(k, checks + pos + 1, "while verifying step-4 candidates")
                     seq, n_seq = step.run(order)
                     tried += n_seq
+                    examined += n_seq
                     proof = None if seq is None else self.verify(step, seq)
                     if seq is None or proof is not None:
                         break
@@ -362,7 +364,7 @@ class Search:
                 # min-distance computation per 12-vertex polyline (42 pairs) examined in order
                 stats = {"k": k, "collision_checks": checks + len(polys),
                          "steps_back": steps_back, "min_distance_computations": tried,
-                         "offset_rank": min(n_seq - 1, 2),
+                         "offset_rank": min(examined - 1, 2),
                          "collision_checks_sequential": checks + pos + 1,
                          "refuted_by_verification": refuted,
                          "work": self.work(checks + pos + 1, tried)}
