@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import io
+import itertools
 import json
 
 import numpy as np
@@ -24,13 +25,35 @@ def exported() -> export.ExportResult:
 def test_export_files_and_watertight_parts(exported):
     files = dict(exported.files)
     assert set(files) == {f"link_{i}.stl" for i in range(6)} | {
-        "paraloop.3mf", "assembly.glb", "report.json"}
+        "paraloop.3mf", "assembly.glb", "report.json", "assembly.md"} | {
+        f"assembly_step_{k}.png" for k in range(1, 8)}
+    home = {}
     for i in range(6):
         mesh = trimesh.load(io.BytesIO(files[f"link_{i}.stl"]), file_type="stl")
         assert mesh.is_watertight and mesh.volume > 0
+        home[f"link_{i}"] = mesh
+    # the 3MF: the same parts laid flat on the default bed, side by side
     scene = trimesh.load(io.BytesIO(files["paraloop.3mf"]), file_type="3mf")
     assert sorted(scene.geometry) == [f"link_{i}" for i in range(6)]
-    assert all(g.is_watertight for g in scene.geometry.values())
+    laid = {name: scene.geometry[name].copy().apply_transform(scene.graph[name][0])
+            for name in scene.graph.nodes_geometry}
+    bounds = np.array([m.bounds for m in laid.values()])
+    assert np.allclose(bounds[:, 0, 2], 0.0, atol=1e-6)  # on the bed
+    assert np.all(bounds[:, 0] >= -1e-6) and np.all(bounds[:, 1] <= export.DEFAULT_BED_MM)
+    for name, mesh in laid.items():
+        assert mesh.is_watertight and mesh.volume == pytest.approx(home[name].volume, rel=1e-6)
+        touching = mesh.area_faces[(mesh.triangles_center[:, 2] < 0.05)
+                                   & (mesh.face_normals[:, 2] < -0.999)].sum()
+        entry = next(p for p in exported.report["print_layout"]["parts"] if p["name"] == name)
+        assert touching == pytest.approx(entry["contact_mm2"], rel=1e-6) and touching > 0
+    lo, hi = bounds[:, 0, :2], bounds[:, 1, :2]  # footprints do not overlap
+    for a, b in itertools.combinations(range(6), 2):
+        assert np.any(hi[a] <= lo[b] + 1e-6) or np.any(hi[b] <= lo[a] + 1e-6)
+    guide = files["assembly.md"].decode()
+    assert all(f"the pin of link_{i} goes into the bore of link_{(i + 1) % 6}" in guide
+               for i in range(6))
+    assert all(f"(assembly_step_{k}.png)" in guide for k in range(1, 8))
+    assert files["assembly_step_1.png"][:8] == b"\x89PNG\r\n\x1a\n"
     glb = trimesh.load(io.BytesIO(files["assembly.glb"]), file_type="glb")
     assert len(glb.geometry) == 6
 

@@ -24,7 +24,9 @@ from paraloop_core.linkage import loops
 
 DESIGNS = Path(__file__).resolve().parent.parent / "assets" / "designs"
 PART_FILES = {f"link_{i}.stl" for i in range(6)} | {"paraloop.3mf", "assembly.glb",
-                                                     "report.json", "paraloop-result.json"}
+                                                     "report.json", "paraloop-result.json",
+                                                     "assembly.md"} | {
+    f"assembly_step_{k}.png" for k in range(1, 8)}
 
 
 def open_studio(name: str):
@@ -141,7 +143,9 @@ def test_export_zip_has_parts_and_a_verified_report(tv8):
     name, data = tv8.downloads[-1]
     assert name.startswith("paraloop-TV8") and name.endswith(".zip"), tv8.notifications
     with zipfile.ZipFile(io.BytesIO(data)) as zf:
-        assert set(zf.namelist()) == PART_FILES
+        names = set(zf.namelist())
+        plates = json.loads(zf.read("report.json"))["print_layout"]["plates"]
+        assert names == PART_FILES | {f"paraloop_plate{k}.3mf" for k in range(2, plates + 1)}
         report = json.loads(zf.read("report.json"))
         result = json.loads(zf.read("paraloop-result.json"))
         assert zf.read("assembly.glb")[:4] == b"glTF" and len(zf.read("link_0.stl")) > 1000

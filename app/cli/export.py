@@ -2,8 +2,10 @@
 
 Solves the design (with its realization), sizes the parts for the printer (``--printer``,
 ``--bed``; or at ``--size-mm``; :mod:`paraloop_core.fabrication.printable`), builds and verifies
-them over the cycle and writes ``link_<i>.stl``, ``paraloop.3mf``, ``assembly.glb`` and
-``report.json`` into DIR (all or nothing). DIR is checked before the solve: it must be (or
+them over the cycle and writes ``link_<i>.stl`` (home pose), ``paraloop.3mf`` (the parts laid
+out on the bed; ``paraloop_plate<k>.3mf`` for further plates), ``assembly.glb``, the assembly
+guide ``assembly.md`` with ``assembly_step_<k>.png`` and ``report.json`` into DIR (all or
+nothing). DIR is checked before the solve: it must be (or
 become) a writable directory holding none of these files unless ``--force``. Exit status 0 when
 verification passes, 2 on refused input (nothing written), 3 when no realization was found or
 verification fails (files written, the report says why), 1 on an internal error.
@@ -23,15 +25,16 @@ from paraloop_core import pipeline
 from paraloop_core.errors import ParaloopError, RealizationError
 from paraloop_core.fabrication import printable, sizing
 
-#: the fixed names written into DIR (plus ``link_<i>.stl``)
-FIXED_NAMES = ("paraloop.3mf", "assembly.glb", "report.json")
+#: the fixed names written into DIR (plus the numbered ones of :data:`NUMBERED`)
+FIXED_NAMES = ("paraloop.3mf", "assembly.glb", "report.json", "assembly.md")
+NUMBERED = ("link_*.stl", "paraloop_plate*.3mf", "assembly_step_*.png")
 
 
 def check_out(out: Path, force: bool) -> None:
     """Refuse an unusable ``--out`` before any work (OutputError)."""
     outputs.check_dir_target(out, FIXED_NAMES, force)
     if out.is_dir() and not force:
-        for old in sorted(out.glob("link_*.stl")):
+        for old in sorted(p for pattern in NUMBERED for p in out.glob(pattern)):
             raise outputs.OutputError(f"{old}: already exists (use --force to overwrite)")
 
 

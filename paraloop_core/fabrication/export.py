@@ -39,7 +39,7 @@ import trimesh
 
 from paraloop_core.algebra import dq, poly
 from paraloop_core.errors import FabricationError
-from paraloop_core.fabrication import carve, endlink, grounding, meshing, parts, voxelspace
+from paraloop_core.fabrication import carve, endlink, grounding, guide, meshing, parts, voxelspace
 from paraloop_core.fabrication.parts import (
     Assembly,
     Part,
@@ -263,12 +263,19 @@ class ExportResult:
     assembly: Assembly | None = None
 
 
+#: Build volume (mm) the plates are laid out for unless a printer is given (``sizing``).
+DEFAULT_BED_MM = (250.0, 210.0, 210.0)
+
+
 def export_assembly(asm: Assembly, *, verify: bool = True, samples: int = 720,
-                    extra_report: dict | None = None,
+                    extra_report: dict | None = None, bed_mm: tuple = DEFAULT_BED_MM,
+                    with_guide: bool = True,
                     progress: Progress | None = None) -> ExportResult:
-    """STL per part, ``paraloop.3mf`` (named bodies), ``assembly.glb`` (home pose, coloured)
-    and ``report.json``. Raises :class:`FabricationError` (``not-watertight``) if a part is
-    not watertight."""
+    """STL per part (home pose), ``paraloop.3mf`` (named parts laid out on the bed
+    ``bed_mm`` in print orientation; more plates as ``paraloop_plate<k>.3mf``),
+    ``assembly.glb`` (home pose, coloured), with ``with_guide`` the assembly guide
+    (:mod:`guide`), and ``report.json``. Raises :class:`FabricationError`
+    (``not-watertight``) if a part is not watertight."""
     meshes = {}
     files: list[tuple[str, bytes]] = []
     for p in asm.parts:
@@ -277,10 +284,10 @@ def export_assembly(asm: Assembly, *, verify: bool = True, samples: int = 720,
             raise FabricationError(f"{p.name} is not watertight", "not-watertight")
         meshes[p.name] = tm
         files.append((f"{p.name}.stl", tm.export(file_type="stl")))
-    scene = trimesh.Scene()
-    for name, tm in meshes.items():
-        scene.add_geometry(tm, node_name=name, geom_name=name)
-    files.append(("paraloop.3mf", scene.export(file_type="3mf")))
+    layout = guide.bed_layout(meshes, bed_mm, asm.spec.print_in_place)
+    files += guide.plate_files(meshes, layout)
+    if with_guide:
+        files += guide.guide_pages(asm, meshes, layout, bed_mm)
     glb = trimesh.Scene()
     for p in asm.parts:
         tm = meshes[p.name].copy()
@@ -290,7 +297,8 @@ def export_assembly(asm: Assembly, *, verify: bool = True, samples: int = 720,
     report = {"scale_mm_per_unit": asm.scale, "spec": asdict(asm.spec),
               "parts": [{"name": name, "obb_extents_mm":  # for bed fit and the part list
                          np.sort(tm.bounding_box_oriented.primitive.extents).tolist()}
-                        for name, tm in meshes.items()], **(extra_report or {})}
+                        for name, tm in meshes.items()],
+              "print_layout": guide.layout_entry(layout, bed_mm), **(extra_report or {})}
     if verify:
         report["verification"] = verify_assembly(asm, samples, progress=progress)
     files.append(("report.json", report_json(report)))
@@ -324,14 +332,16 @@ def export_parts(joint_factors: np.ndarray, points: np.ndarray, radius: float, *
                  resolution: int = 128, order: Sequence[tuple[int, int]] = carve.DEFAULT_ORDER,
                  samples: int = 720,
                  effector: EndEffector | EndEffectorRealization | None = None,
-                 progress: Progress | None = None, verify: bool = True) -> ExportResult:
+                 progress: Progress | None = None, verify: bool = True,
+                 bed_mm: tuple = DEFAULT_BED_MM, with_guide: bool = True) -> ExportResult:
     """Parts of a realized loop (``joint_factors`` ``(6, 8)``, ``points`` ``(12, 3)``, bar
     ``radius``, design units) at ``spec.size_mm``, with a grounding column on link 0
     (``ground``; ``ground_z`` in design units) and, if ``space_radius`` is given (one value:
     base link twice; or six, e.g. ``Realization.design_space_radii``), carved design spaces as
     link bodies (:func:`carve_design_spaces`); exported and verified. ``effector``: the
     end-effector (``Solution.end_effector`` or its ``EndEffector``; None: none): link 3 is then
-    the bars ``S_3 L``, ``R E_3`` and P's solid (:mod:`endlink`), not the bar ``S_3 E_3``."""
+    the bars ``S_3 L``, ``R E_3`` and P's solid (:mod:`endlink`), not the bar ``S_3 E_3``.
+    ``bed_mm``, ``with_guide``: as :func:`export_assembly`."""
     pts = np.asarray(points, float)
     spec = spec or PartSpec()
     scale = design_scale(pts, spec.size_mm)
@@ -381,6 +391,7 @@ def export_parts(joint_factors: np.ndarray, points: np.ndarray, radius: float, *
         report["end_effector"] = {"method": el.method, "volume_mm3": solid.volume(),
                                   "kept_mm3": (asm.parts[3].manifold ^ solid).volume()}
     return export_assembly(asm, verify=verify, samples=samples, extra_report=report,
+                           bed_mm=bed_mm, with_guide=with_guide,
                            progress=stage(progress, 0.5, 1.0))
 
 

@@ -22,7 +22,7 @@ from dataclasses import replace
 import numpy as np
 
 from paraloop_core.errors import FabricationError
-from paraloop_core.fabrication import export, sizing
+from paraloop_core.fabrication import export, guide, sizing
 from paraloop_core.fabrication.export import ExportResult
 from paraloop_core.fabrication.parts import PartSpec
 from paraloop_core.realization.realize import Realization
@@ -54,8 +54,8 @@ def export_printable(realization: Realization, *,
         spec = PartSpec(size_mm=sz.size_mm, clearance_mm=printer.clearance_mm,
                         rho_mm=sz.bar_radius_mm, boss_radius_mm=sz.boss_radius_mm,
                         pin_radius_mm=sz.pin_radius_mm, print_in_place=print_in_place)
-        build = dict(spec=spec, verify=False, samples=samples,
-                     progress=export.stage(progress, 0.0, 0.5), **options)
+        build = dict(spec=spec, verify=False, samples=samples, bed_mm=printer.bed_mm,
+                     with_guide=False, progress=export.stage(progress, 0.0, 0.5), **options)
         try:
             result = export.export_parts(real.joint_factors, real.points, real.radius,
                                          ground=ground, **build)
@@ -99,6 +99,12 @@ def export_printable(realization: Realization, *,
         "wall_mm": printer.wall_mm, "fits_bed": fit.tolist()}
     report["warnings"] = warnings
     files = [(n, b) for n, b in result.files if n != "report.json"]
+    meshes = {p.name: export.part_trimesh(p) for p in result.assembly.parts}
+    layout = guide.bed_layout(meshes, printer.bed_mm, spec.print_in_place)
+    settings = {"printer profile": f"{printer.name} (walls >= {printer.wall_mm:g} mm, pin "
+                f"radius >= {printer.pin_radius_mm:g} mm)", "size": f"{sz.size_mm:.0f} mm "
+                f"({report['scale_mm_per_unit']:.4g} mm per design unit)"}
+    files += guide.guide_pages(result.assembly, meshes, layout, printer.bed_mm, settings)
     return replace(result, files=files + [("report.json", export.report_json(report))])
 
 
