@@ -118,10 +118,28 @@ def test_cli_export(tmp_path):
     parser = argparse.ArgumentParser()
     export_cmd.register(parser.add_subparsers())
     args = parser.parse_args(["export", "assets/designs/sun-disc.json", "--out", str(tmp_path),
-                              "--size-mm", "500", "--no-ground", "--samples", "90", "--quiet"])
+                              "--size-mm", "500", "--no-ground", "--samples", "90", "--quiet",
+                              "--3dm"])
     assert args.func(args) == 0
     assert (tmp_path / "paraloop.3mf").stat().st_size > 0
     assert json.loads((tmp_path / "report.json").read_text())["verification"]["ok"]
+    assert "![step 7](assembly_step_7.png)" in (tmp_path / "assembly.md").read_text()
+    # the Rhino file holds the STLs' geometry, one named part per layer, in mm
+    import rhino3dm
+
+    model = rhino3dm.File3dm.Read(str(tmp_path / "paraloop.3dm"))
+    assert model.Settings.ModelUnitSystem == rhino3dm.UnitSystem.Millimeters
+    assert sorted(layer.Name for layer in model.Layers) == [f"link_{i}" for i in range(6)]
+    for obj in model.Objects:
+        stl = trimesh.load(tmp_path / f"{obj.Attributes.Name}.stl")
+        box = obj.Geometry.GetBoundingBox()
+        assert len(obj.Geometry.Vertices) >= len(stl.vertices) > 0
+        assert np.allclose([box.Min.X, box.Min.Y, box.Min.Z], stl.bounds[0], atol=1e-4)
+        assert np.allclose([box.Max.X, box.Max.Y, box.Max.Z], stl.bounds[1], atol=1e-4)
+    from app.cli.main import main
+
+    assert main(["export", "assets/designs/sun-disc.json", "--out", str(tmp_path),
+                 "--quiet"]) == 2  # refuses to overwrite, before any work
     with pytest.raises(SystemExit) as bad:  # refused by the argument parser: exit code 2
         parser.parse_args(["export", "assets/designs/sun-disc.json", "--out",
                            str(tmp_path / "x"), "--clearance", "-1", "--quiet"])

@@ -4,8 +4,8 @@ Solves the design (with its realization), sizes the parts for the printer (``--p
 ``--bed``; or at ``--size-mm``; :mod:`paraloop_core.fabrication.printable`), builds and verifies
 them over the cycle and writes ``link_<i>.stl`` (home pose), ``paraloop.3mf`` (the parts laid
 out on the bed; ``paraloop_plate<k>.3mf`` for further plates), ``assembly.glb``, the assembly
-guide ``assembly.md`` with ``assembly_step_<k>.png`` and ``report.json`` into DIR (all or
-nothing). DIR is checked before the solve: it must be (or
+guide ``assembly.md`` with ``assembly_step_<k>.png``, with ``--3dm`` a Rhino ``paraloop.3dm``,
+and ``report.json`` into DIR (all or nothing). DIR is checked before the solve: it must be (or
 become) a writable directory holding none of these files unless ``--force``. Exit status 0 when
 verification passes, 2 on refused input (nothing written), 3 when no realization was found or
 verification fails (files written, the report says why), 1 on an internal error.
@@ -23,10 +23,10 @@ from app.cli.outputs import EXIT_NOT_REALIZED, EXIT_OK, EXIT_REFUSED
 from paraloop_core import design as design_mod
 from paraloop_core import pipeline
 from paraloop_core.errors import ParaloopError, RealizationError
-from paraloop_core.fabrication import printable, sizing
+from paraloop_core.fabrication import printable, rhino, sizing
 
 #: the fixed names written into DIR (plus the numbered ones of :data:`NUMBERED`)
-FIXED_NAMES = ("paraloop.3mf", "assembly.glb", "report.json", "assembly.md")
+FIXED_NAMES = ("paraloop.3mf", "assembly.glb", "report.json", "assembly.md", "paraloop.3dm")
 NUMBERED = ("link_*.stl", "paraloop_plate*.3mf", "assembly_step_*.png")
 
 
@@ -43,6 +43,8 @@ def cmd_export(args: argparse.Namespace) -> int:
     out = Path(args.out)
     check_out(out, args.force)
     try:
+        if args.rhino:
+            rhino.require()  # before the solve: say at once what is missing
         design = design_mod.load_design(path)
         if not design.realization.enabled:
             raise ParaloopError("the design has no realization (enable it in the design file)",
@@ -59,7 +61,8 @@ def cmd_export(args: argparse.Namespace) -> int:
             real, printer=printer, size_mm=args.size_mm, print_in_place=args.print_in_place,
             ground=not args.no_ground, ground_axis=args.ground_axis,
             space_radius=args.carve_radius, resolution=args.resolution, samples=args.samples,
-            effector=sol.end_effector, progress=None if args.quiet else _print_progress)
+            effector=sol.end_effector, rhino=args.rhino,
+            progress=None if args.quiet else _print_progress)
     except RealizationError as exc:
         print(f"error: {path}: {outputs.one_line(exc)}", file=sys.stderr)
         return EXIT_REFUSED if exc.reason == "bad-parameters" else EXIT_NOT_REALIZED
@@ -132,5 +135,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="voxels along a design space (8..1024)")
     p.add_argument("--samples", type=outputs.int_range(8, 100_000), default=720,
                    help="verification samples (8..100000)")
+    p.add_argument("--3dm", dest="rhino", action="store_true",
+                   help="also write paraloop.3dm (Rhino; needs the rhino3dm package)")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=cmd_export)

@@ -269,13 +269,13 @@ DEFAULT_BED_MM = (250.0, 210.0, 210.0)
 
 def export_assembly(asm: Assembly, *, verify: bool = True, samples: int = 720,
                     extra_report: dict | None = None, bed_mm: tuple = DEFAULT_BED_MM,
-                    with_guide: bool = True,
+                    with_guide: bool = True, rhino: bool = False,
                     progress: Progress | None = None) -> ExportResult:
     """STL per part (home pose), ``paraloop.3mf`` (named parts laid out on the bed
     ``bed_mm`` in print orientation; more plates as ``paraloop_plate<k>.3mf``),
     ``assembly.glb`` (home pose, coloured), with ``with_guide`` the assembly guide
-    (:mod:`guide`), and ``report.json``. Raises :class:`FabricationError`
-    (``not-watertight``) if a part is not watertight."""
+    (:mod:`guide`), with ``rhino`` ``paraloop.3dm`` (:mod:`rhino`), and ``report.json``.
+    Raises :class:`FabricationError` (``not-watertight``) if a part is not watertight."""
     meshes = {}
     files: list[tuple[str, bytes]] = []
     for p in asm.parts:
@@ -294,6 +294,11 @@ def export_assembly(asm: Assembly, *, verify: bool = True, samples: int = 720,
         tm.visual.face_colors = np.append(_COLORS[p.link], 255)
         glb.add_geometry(tm, node_name=p.name, geom_name=p.name)
     files.append(("assembly.glb", glb.export(file_type="glb")))
+    if rhino:
+        from paraloop_core.fabrication import rhino as rhino_mod  # optional dependency
+
+        files.append(("paraloop.3dm", rhino_mod.assembly_3dm(
+            meshes, {p.name: _COLORS[p.link] for p in asm.parts})))
     report = {"scale_mm_per_unit": asm.scale, "spec": asdict(asm.spec),
               "parts": [{"name": name, "obb_extents_mm":  # for bed fit and the part list
                          np.sort(tm.bounding_box_oriented.primitive.extents).tolist()}
@@ -333,7 +338,8 @@ def export_parts(joint_factors: np.ndarray, points: np.ndarray, radius: float, *
                  samples: int = 720,
                  effector: EndEffector | EndEffectorRealization | None = None,
                  progress: Progress | None = None, verify: bool = True,
-                 bed_mm: tuple = DEFAULT_BED_MM, with_guide: bool = True) -> ExportResult:
+                 bed_mm: tuple = DEFAULT_BED_MM, with_guide: bool = True,
+                 rhino: bool = False) -> ExportResult:
     """Parts of a realized loop (``joint_factors`` ``(6, 8)``, ``points`` ``(12, 3)``, bar
     ``radius``, design units) at ``spec.size_mm``, with a grounding column on link 0
     (``ground``; ``ground_z`` in design units) and, if ``space_radius`` is given (one value:
@@ -341,7 +347,7 @@ def export_parts(joint_factors: np.ndarray, points: np.ndarray, radius: float, *
     link bodies (:func:`carve_design_spaces`); exported and verified. ``effector``: the
     end-effector (``Solution.end_effector`` or its ``EndEffector``; None: none): link 3 is then
     the bars ``S_3 L``, ``R E_3`` and P's solid (:mod:`endlink`), not the bar ``S_3 E_3``.
-    ``bed_mm``, ``with_guide``: as :func:`export_assembly`."""
+    ``bed_mm``, ``with_guide``, ``rhino``: as :func:`export_assembly`."""
     pts = np.asarray(points, float)
     spec = spec or PartSpec()
     scale = design_scale(pts, spec.size_mm)
@@ -391,7 +397,7 @@ def export_parts(joint_factors: np.ndarray, points: np.ndarray, radius: float, *
         report["end_effector"] = {"method": el.method, "volume_mm3": solid.volume(),
                                   "kept_mm3": (asm.parts[3].manifold ^ solid).volume()}
     return export_assembly(asm, verify=verify, samples=samples, extra_report=report,
-                           bed_mm=bed_mm, with_guide=with_guide,
+                           bed_mm=bed_mm, with_guide=with_guide, rhino=rhino,
                            progress=stage(progress, 0.5, 1.0))
 
 
