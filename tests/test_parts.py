@@ -111,3 +111,53 @@ def test_too_small_size_says_what_to_do():
     jf, pts, radius = example_loop()
     with pytest.raises(FabricationError, match="size of at least"):
         parts.build_assembly(jf, pts, radius, parts.PartSpec(size_mm=10.0))
+
+
+def _lean_points(lean_lower: bool) -> np.ndarray:
+    """A polyline whose joint 0 pin runs from E_0 = (0,0,0) to S_1 = (0,0,10) (mm): link 1's
+    bar leans back from S_1 over the pin, link 0's bar leans away or (``lean_lower``) over it."""
+    s0 = [0.0, -30.0, 8.0] if lean_lower else [0.0, -30.0, -20.0]
+    return np.array([s0, [0, 0, 0], [0, 0, 10], [6, 0, 0], [60, 0, 2], [60, 30, 2],
+                     [60, 60, 2], [30, 60, 2], [0, 60, 2], [-30, 60, 2], [-30, 30, 2],
+                     [-30, 0, 2]], float)
+
+
+SPEC = parts.resolve_spec(parts.PartSpec(size_mm=90.0, rho_mm=1.0, boss_radius_mm=3.3,
+                                         pin_radius_mm=1.0), 1.0, 1.0)
+
+
+def test_split_moves_away_from_a_bar_that_leans_back():
+    jf = example_loop()[0]
+    one = parts.joint_zones(jf, _lean_points(False), SPEC)[0]
+    assert one.notch == (0.0, 0.0) and one.split < 5.0 - 1.0  # towards E_0, off the middle
+    # link 1's bar material within the zone cut's radius stays above the split (sampled)
+    d = np.array([6.0, 0.0, -10.0]) / np.linalg.norm([6.0, 0.0, -10.0])
+    lam = np.linspace(0.0, 11.0, 4001)[:, None]
+    phi = np.linspace(0.0, 2.0 * np.pi, 73)[:, None]
+    disc = np.cos(phi) * [0.0, 1.0, 0.0] + np.sin(phi) * np.cross(d, [0.0, 1.0, 0.0])
+    surface = (np.array([0, 0, 10.0]) + lam * d)[:, None] + SPEC.rho_mm * disc[None]
+    near = np.hypot(surface[..., 0], surface[..., 1]) < one.radius + one.eps
+    assert near.any()
+    assert surface[..., 2][near].min() >= one.split + one.gap / 2 + one.eps - 1e-9
+    both = parts.joint_zones(jf, _lean_points(True), SPEC)[0]
+    assert both.notch[0] > 0 and both.notch[1] > 0  # no split clears both: the middle of it
+    assert both.notch[0] == pytest.approx(both.notch[1])
+
+
+@pytest.mark.parametrize("lean_lower", [False, True])
+def test_hardware_fits_at_a_moved_split(lean_lower):
+    """Pin in bore and boss ends keep the clearance c wherever the split lies."""
+    z = parts.joint_zones(example_loop()[0], _lean_points(lean_lower), SPEC)[0]
+    solid = {}
+    for upper in (False, True):
+        pieces = parts._hardware(z, SPEC, upper)
+        body = parts.m3d.Manifold.batch_boolean(
+            [parts.cylinder(p0, p1, r, 96) for p0, p1, r, bore in pieces if not bore],
+            parts.m3d.OpType.Add)
+        for p0, p1, r, bore in pieces:
+            if bore:
+                body = body - parts.cylinder(p0, p1, r, 96)
+        solid[upper] = body
+    assert (solid[False] ^ solid[True]).is_empty()
+    gap = solid[False].min_gap(solid[True], 1.0)
+    assert SPEC.clearance_mm * 0.95 <= gap <= SPEC.clearance_mm + 1e-6

@@ -80,18 +80,3 @@ def test_plain_export_sizes_for_the_printer(tmp_path):
     assert sz["chosen"] == "auto" and all(sz["fits_bed"])
     assert sz["size_mm"] >= sz["min_size_mm"] and sz["pin_radius_mm"] >= 1.0
     assert sz["boss_radius_mm"] >= sz["pin_radius_mm"] + 0.3 + 2.0 - 1e-9
-
-
-def test_lean_back_and_the_notch_warning():
-    # joint 0: pin from E_0 = (0,0,0) to S_1 = (0,0,1); link 1's bar leans back from S_1 to
-    # E_1 = (2, 0, -1): over the pin's midpoint height z = 0.5 it is 0.5 from the axis
-    pts = np.array([[5, 5, -5], [0, 0, 0], [0, 0, 1], [2, 0, -1], [9, 0, -1], [9, 9, 9],
-                    [8, 8, 8], [7, 7, 7], [6, 6, 6], [5, 6, 6], [5, 5, 6], [5, 5, 5.5]], float)
-    lb = sizing.lean_back(pts)
-    assert lb[0, 0] == pytest.approx(0.5)
-    assert np.isinf(lb[0, 1])  # link 0's bar (E_0 -> S_0) points away from the other boss
-    sz = sizing.choose_size(sizing.Limits(5.0, 5.0, 5.0, 100.0), GENERIC, 150.0)  # 1.5 mm/unit
-    warn = sizing.notch_warnings(pts, sz, GENERIC)
-    assert any("link 1's bar leans back over link 0's boss at joint 0" in w for w in warn)
-    assert not any("link 0's bar" in w for w in warn)
-    assert not any("link 1's bar" in w for w in sizing.notch_warnings(pts, sz, GENERIC, (1,)))

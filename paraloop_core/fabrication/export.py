@@ -367,18 +367,23 @@ def export_parts(joint_factors: np.ndarray, points: np.ndarray, radius: float, *
             raise FabricationError("print-in-place parts ground through A_0 only (A_5 carries "
                                    "link 5's pin head)", "bad-parameters")
         gz = _zones_extent(rs)
+        bars = [pts[[2 * i, 2 * i + 1]][None] * scale for i in range(6)]
+        if el is not None:
+            bars[3] = el.bars * scale
+        zones = parts.joint_zones(joint_factors, pts * scale, rs, bars)
+        splits = [z.split / z.length if z.length > 0 else 0.5 for z in zones]
         end_caps = None if el is None else \
             [(p0, p1, rs.rho_mm / scale) for p0, p1 in el.bars] + \
             [(c[0] / scale, c[1] / scale, c[2] / scale) for c in parts.principal_capsules(solid)]
         g = grounding.ground_column(
             joint_factors, pts, bar_radius=rs.rho_mm / scale, hub_radius=gz[0] / scale,
             hub_extent=gz[1] / scale, axis=0 if rs.print_in_place else ground_axis,
-            ground_z=ground_z, end_link=end_caps)
+            ground_z=ground_z, end_link=end_caps, splits=splits)
         top, bottom = g.top * scale, g.bottom * scale
-        # start 1 mm (at most half the boss) inside the base link's boss: no touching faces
-        pin = float(np.linalg.norm(pts[2] - pts[1] if g.axis == 0 else pts[0] - pts[11]))
-        top = top + (top - bottom) / np.linalg.norm(top - bottom) * min(
-            1.0, 0.25 * (pin * scale - rs.clearance_mm))
+        # start 1 mm (at most half its length) inside the base link's boss: no touching faces
+        z = zones[g.axis]  # link 0 holds the lower boss of joint 0, the upper one of joint 5
+        boss = z.split - z.gap / 2 if g.axis == 0 else z.length - z.split - z.gap / 2
+        top = top + (top - bottom) / np.linalg.norm(top - bottom) * min(1.0, 0.5 * boss)
         foot0 = np.array([bottom[0], bottom[1], g.ground_z * scale])
         foot1 = foot0 + [0.0, 0.0, g.foot_height * scale]
         r, rf = g.radius * scale, g.foot_radius * scale

@@ -45,11 +45,13 @@ class Grounding:
 
 def link_capsules(points: np.ndarray, bar_radius: float, hub_radius: float,
                   hub_extent: float, end_link: Sequence[tuple] | None = None,
+                  splits: Sequence[float] | None = None,
                   ) -> list[list[tuple[np.ndarray, np.ndarray, float, int]]]:
     """Skeleton capsules per link (home frame): the bar and the two hubs along the pins, each
-    hub from the pin's midpoint to ``hub_extent`` beyond the joint point; tagged with the joint
-    (-1 for the bar). ``points`` ``(12, 3)``; ``end_link``: capsules ``(p0, p1, radius)``
-    replacing link 3's bar (bars ``S_3 L``, ``R E_3`` and the end-effector P)."""
+    hub from the bosses' split (fraction ``splits[i]`` of pin i from ``E_i``, default the
+    midpoint; ``parts.Zone.split``) to ``hub_extent`` beyond the joint point; tagged with the
+    joint (-1 for the bar). ``points`` ``(12, 3)``; ``end_link``: capsules ``(p0, p1,
+    radius)`` replacing link 3's bar (bars ``S_3 L``, ``R E_3`` and the end-effector P)."""
     out: list[list[tuple[np.ndarray, np.ndarray, float, int]]] = [[] for _ in range(6)]
     for i in range(6):
         if i == 3 and end_link is not None:
@@ -59,7 +61,7 @@ def link_capsules(points: np.ndarray, bar_radius: float, hub_radius: float,
         e, s = points[2 * i + 1], points[(2 * i + 2) % 12]
         d = s - e
         w = d / n if (n := np.linalg.norm(d)) > 0 else np.zeros(3)
-        mid = 0.5 * (e + s)
+        mid = e + (0.5 if splits is None else splits[i]) * d
         out[i].append((e - hub_extent * w, mid, hub_radius, i))
         out[(i + 1) % 6].append((mid, s + hub_extent * w, hub_radius, i))
     return out
@@ -90,9 +92,11 @@ def ground_column(joint_factors: np.ndarray, points: np.ndarray, *, bar_radius: 
                   hub_radius: float, hub_extent: float, column_radius: float | None = None,
                   axis: int | None = None, ground_z: float | None = None,
                   margin: float | None = None, samples: int = 720,
-                  end_link: Sequence[tuple] | None = None) -> Grounding:
+                  end_link: Sequence[tuple] | None = None,
+                  splits: Sequence[float] | None = None) -> Grounding:
     """Grounding column through A_0 or A_5 (``axis``; default: the first that works);
-    ``end_link`` as in :func:`link_capsules` (so the ground lies below the end-effector too).
+    ``end_link`` as in :func:`link_capsules` (so the ground lies below the end-effector too),
+    ``splits`` too.
 
     Raises :class:`FabricationError` (``bad-parameters``) for bad sizes and (``grounding``)
     when neither axis points down to the ground or every column collides with a moving link.
@@ -106,7 +110,7 @@ def ground_column(joint_factors: np.ndarray, points: np.ndarray, *, bar_radius: 
                                "axis 0 or 5", "bad-parameters")
     foot_h = r
     margin = foot_h + 2.0 * r if margin is None else margin
-    caps = link_capsules(pts, bar_radius, hub_radius, hub_extent, end_link)
+    caps = link_capsules(pts, bar_radius, hub_radius, hub_extent, end_link, splits)
     u = np.arange(samples) / samples
     if ground_z is None:
         poses = dq.to_matrix(loops.link_poses(jf, poly.param_to_t(u)))

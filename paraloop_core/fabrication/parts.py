@@ -6,11 +6,16 @@ design units to mm; parts are built in the home configuration (t = inf, base fra
 Joint i (axis A_i, pin ``E_i S_{i+1}`` of length L, unit ``w`` from ``E_i`` to ``S_{i+1}``,
 axial coordinate ``s`` from ``E_i``) with boss radius R, boss length b, clearance c:
 
-* link i: boss ``s in [-b, L/2 - c/2]`` and a pin of radius r fixed in it, reaching to the far
+* link i: boss ``s in [-b, m - c/2]`` and a pin of radius r fixed in it, reaching to the far
   end of link i+1's boss (``s = L + b``; print-in-place: on through an axial gap c to a head of
   radius R, which captures link i+1);
-* link i+1: boss ``s in [L/2 + c/2, L + b]`` with a bore of radius ``r + c`` through it; the
+* link i+1: boss ``s in [m + c/2, L + b]`` with a bore of radius ``r + c`` through it; the
   boss ends facing each other act as spacers with the axial gap c.
+
+The split ``m`` (:func:`_split`) is per joint: a bar that leans back over the pin runs through
+the zone beside the other link's boss, and the zone would notch it (a weak bar and a hairline
+gap). So ``m`` moves away from such a bar, as far as both bars allow, else to the middle of
+the conflict (``Zone.notch`` then says by how much each bar still reaches over).
 
 Each link body (its bar as a capsule of radius rho, or a carved mesh) is cut by both **joint
 zones** ``Z`` (cylinder of radius R about the axis covering all hardware) before the hardware is
@@ -60,6 +65,10 @@ class Zone:
     radius: float
     eps: float
     gap: float
+    #: axial ``s`` where the two bosses meet (their gap ``c`` centred on it)
+    split: float
+    #: mm by which link i's / link i+1's bar still reaches into the other's boss region
+    notch: tuple[float, float]
 
     def at(self, s: float) -> np.ndarray:
         return self.origin + s * self.w
@@ -168,8 +177,13 @@ def _head_length(spec: PartSpec) -> float:
     return max(1.0, 0.5 * spec.boss_radius_mm)
 
 
-def _zones(joint_factors: np.ndarray, pts: np.ndarray, spec: PartSpec) -> list[Zone]:
+def joint_zones(joint_factors: np.ndarray, pts: np.ndarray, spec: PartSpec,
+                bars: list[np.ndarray] | None = None) -> list[Zone]:
+    """The six joint zones (mm) of the polyline ``pts`` ``(12, 3)`` (mm) with the resolved
+    ``spec``; ``bars[i]`` ``(n, 2, 3)`` (mm): link i's bars in order from ``S_i`` to ``E_i``
+    (default the bar ``S_i E_i``), whose directions at the joints place the splits."""
     axes = loops.factor_axes(joint_factors)
+    bars = bars if bars is not None else [pts[[2 * i, 2 * i + 1]][None] for i in range(6)]
     out = []
     head = spec.clearance_mm + _head_length(spec) if spec.print_in_place else 0.0
     # Zone margin: beats the polygon error r (1 - cos(pi/n)) of the cylinders (module doc).
@@ -178,19 +192,46 @@ def _zones(joint_factors: np.ndarray, pts: np.ndarray, spec: PartSpec) -> list[Z
         e, s = pts[2 * i + 1], pts[(2 * i + 2) % 12]
         length = float(np.linalg.norm(s - e))
         w = (s - e) / length if length > 1e-9 else axes[i, :3]
-        if length / 2 - spec.clearance_mm / 2 + spec.boss_length_mm < 4 * eps:
-            raise FabricationError(
-                f"joint {i}: pin {length:.3g} mm is too short for bosses with clearance "
-                f"{spec.clearance_mm} mm; raise the offsets or the boss length", "bad-parameters")
+        lower, upper = bars[i][-1], bars[(i + 1) % 6][0]  # link i's bar ends at E_i, ...
+        split, notch = _split(length, lower[0] - lower[1], upper[1] - upper[0], w, spec, eps, i)
         out.append(Zone(e, w, length, -spec.boss_length_mm, length + spec.boss_length_mm + head,
-                        spec.boss_radius_mm, eps, spec.clearance_mm))
+                        spec.boss_radius_mm, eps, spec.clearance_mm, split, notch))
     return out
+
+
+def _split(length: float, lower: np.ndarray, upper: np.ndarray, w: np.ndarray, spec: PartSpec,
+           eps: float, joint: int) -> tuple[float, tuple[float, float]]:
+    """Split ``m`` of a joint (module docstring) and the notches left: ``lower`` is link i's
+    bar from ``E_i`` (vector, mm), ``upper`` link i+1's bar from ``S_{i+1}``. A bar of radius
+    rho leaving the axis at axial slope ``a`` and radial slope ``r`` has material within the
+    zone cut's radius ``R + eps`` only up to the axial reach ``a (R + eps + rho) / r + rho``
+    (at most its length), which must stay on its own side of the split."""
+    c, b, rho = spec.clearance_mm, spec.boss_length_mm, spec.rho_mm
+
+    def reach(bar: np.ndarray, toward: np.ndarray) -> float:
+        n = float(np.linalg.norm(bar))
+        a = float(bar @ toward) / n if n > 0 else 0.0
+        if a <= 0.0:
+            return rho  # leans away: only the bar's rounded end
+        r = np.sqrt(max(1.0 - a * a, 0.0))
+        return a * min(n, (spec.boss_radius_mm + eps + rho) / max(r, 1e-12)) + rho
+
+    floor, ceil = c / 2 - b + 4 * eps, length + b - c / 2 - 4 * eps  # bosses >= 4 eps long
+    if floor > ceil:
+        raise FabricationError(
+            f"joint {joint}: pin {length:.3g} mm is too short for bosses with clearance {c} mm; "
+            "raise the offsets or the boss length", "bad-parameters")
+    lo = reach(lower, w) + c / 2 + eps  # link i's bar needs m >= lo
+    hi = length - reach(upper, -w) - c / 2 - eps  # link i+1's bar needs m <= hi
+    m = float(np.clip(length / 2, lo, hi) if lo <= hi else (lo + hi) / 2)
+    m = float(np.clip(m, floor, ceil))
+    return m, (max(0.0, lo - m), max(0.0, m - hi))
 
 
 def _hardware(z: Zone, spec: PartSpec, upper: bool) -> list[tuple]:
     """Hardware pieces of one side of a joint: ``(p0, p1, radius, is_bore)`` cylinders."""
     c, b, length, at = spec.clearance_mm, spec.boss_length_mm, z.length, z.at
-    mid = length / 2
+    mid = z.split
     if upper:  # the bore is blind where the neighbour's bar end caps it (assembly: from mid)
         return [(at(mid + c / 2), at(length + b), spec.boss_radius_mm, False),
                 (at(mid + c / 2 - 1.0), at(length + b + 1.0), spec.pin_radius_mm + c, True)]
@@ -224,12 +265,15 @@ def build_assembly(joint_factors: np.ndarray, points: np.ndarray, radius: float,
     scale = design_scale(pts, spec.size_mm)
     spec = resolve_spec(spec, float(radius), scale)
     pmm = pts * scale
-    zones = _zones(jf, pmm, spec)
+    bars = [pmm[[2 * i, 2 * i + 1]][None] for i in range(6)]
+    if end_link is not None:
+        bars[3] = np.asarray(end_link[0], float) * scale
+    zones = joint_zones(jf, pmm, spec, bars)
     n = spec.segments
     parts = []
     for i in range(6):
         s_i, e_i = pmm[2 * i], pmm[2 * i + 1]
-        segs = [(s_i, e_i)] if i != 3 or end_link is None else end_link[0] * scale
+        segs = bars[i]
         body = m3d.Manifold.batch_boolean([capsule(p0, p1, spec.rho_mm, n) for p0, p1 in segs],
                                           m3d.OpType.Add)
         caps = [(p0, p1, spec.rho_mm, -1) for p0, p1 in segs]
@@ -314,7 +358,7 @@ def zone_cut(z: Zone, upper: bool, segments: int) -> m3d.Manifold:
     """What a body loses at a joint: radius ``R - eps`` along its own boss (the boss, radius
     R, overlaps the rest: no coincident faces, no slits) and ``R + eps`` towards the neighbour
     (nothing of it is left near the neighbour's hardware, nor near a print-in-place head)."""
-    e, r, mid, c = z.eps, z.radius, z.length / 2, z.gap
+    e, r, mid, c = z.eps, z.radius, z.split, z.gap
     end = z.length - z.s0  # far end of the upper boss
     if upper:
         cuts = [(z.s0 - e, mid + c / 2 + e, r + e)]
@@ -336,7 +380,7 @@ def zone_hulls(z: Zone, spec: PartSpec) -> tuple[m3d.Manifold, m3d.Manifold]:
     """Solids of revolution (up to the polygon error) containing each side's part inside
     :func:`zone_solid`: the lower side's boss region plus its pin (and head), and the upper
     side's boss region (its material left inside ``W``)."""
-    e, n, mid = z.eps / 2, spec.segments, z.length / 2
+    e, n, mid = z.eps / 2, spec.segments, z.split
     lower = cylinder(z.at(z.s0 - e), z.at(mid - z.gap / 2), z.radius + e, n)
     for p0, p1, r, _ in _hardware(z, spec, False)[1:]:
         lower = lower + cylinder(p0, p1, r, n)

@@ -24,7 +24,7 @@ import numpy as np
 from paraloop_core.errors import FabricationError
 from paraloop_core.fabrication import export, guide, sizing
 from paraloop_core.fabrication.export import ExportResult
-from paraloop_core.fabrication.parts import PartSpec
+from paraloop_core.fabrication.parts import Assembly, PartSpec
 from paraloop_core.realization.realize import Realization
 
 #: Rebuilds allowed to shrink an automatically sized assembly onto the bed.
@@ -83,8 +83,7 @@ def export_printable(realization: Realization, *,
             f"the parts did not fit printer {printer.name!r} (bed {_bed(printer)} mm) after "
             f"{_FIT_ROUNDS} smaller sizes (down to {sz.size_mm:.0f} mm); use --size-mm or a "
             "larger bed", "bad-parameters")
-    no_bar = (3,) if options.get("effector") is not None else ()  # link 3 is P and its bars
-    warnings += sizing.notch_warnings(real.points, sz, printer, no_bar)
+    warnings += notch_warnings(result.assembly)
     if not fit.all():
         warnings.append(f"parts {np.flatnonzero(~fit).tolist()} do not fit the bed "
                         f"{_bed(printer)} mm at the requested {sz.size_mm:.0f} mm")
@@ -106,6 +105,21 @@ def export_printable(realization: Realization, *,
                 f"({report['scale_mm_per_unit']:.4g} mm per design unit)"}
     files += guide.guide_pages(result.assembly, meshes, layout, printer.bed_mm, settings)
     return replace(result, files=files + [("report.json", export.report_json(report))])
+
+
+def notch_warnings(asm: Assembly) -> list[str]:
+    """One warning per bar that still reaches over the neighbour's boss at a joint
+    (``parts.Zone.notch``): the joint zone notches it there (the parts stay apart)."""
+    out = []
+    for i, z in enumerate(asm.zones):
+        for side, mm in enumerate(z.notch):
+            if mm > 0:
+                link, other = (i, (i + 1) % 6) if side == 0 else ((i + 1) % 6, i)
+                out.append(f"link {link}'s bar reaches {mm:.2f} mm over link {other}'s boss at "
+                           f"joint {i} (both bars lean over the pin), so the joint zone notches "
+                           "it; a larger size, thinner bosses or a longer pin (realization "
+                           "offset d) avoid it")
+    return out
 
 
 def _bed(printer: sizing.Printer) -> str:
