@@ -12,8 +12,10 @@ import pytest
 import trimesh
 from test_parts import example_assembly, example_loop
 
+from paraloop_core.algebra import dq, poly
 from paraloop_core.errors import FabricationError
 from paraloop_core.fabrication import export, grounding, parts
+from paraloop_core.linkage import loops
 
 
 @pytest.fixture(scope="module")
@@ -102,11 +104,35 @@ def test_grounding_column():
     jf, pts, radius = example_loop()
     g = grounding.ground_column(jf, pts, bar_radius=radius, hub_radius=radius,
                                 hub_extent=0.0)
-    assert g.axis == 0 and g.clearance > 0 and g.sampled_clearance >= g.clearance
+    assert g.axis in (g.link, (g.link - 1) % 6)
+    assert g.clearance > 0 and g.sampled_clearance >= g.clearance
     assert g.bottom[2] == pytest.approx(g.ground_z)
+    for link in range(6):  # the default is the best of every link's best
+        try:
+            other = grounding.ground_column(jf, pts, bar_radius=radius, hub_radius=radius,
+                                            hub_extent=0.0, link=link)
+        except FabricationError:
+            continue
+        assert other.link == link and other.clearance <= g.clearance
+    # dense check in the grounded link's frame: the column against the other links' bars
+    u = np.linspace(0.0, 1.0, 1001)
+    poses = dq.to_matrix(loops.link_poses(jf, poly.param_to_t(u)))
+    rel = np.linalg.inv(poses[:, g.link, None]) @ poses  # (T, 6, 4, 4)
+    col = g.top + np.linspace(g.radius / np.linalg.norm(g.bottom - g.top), 1.0, 200)[:, None] * (
+        g.bottom - g.top)
+    lam = np.linspace(0.0, 1.0, 100)[:, None]
+    for j in range(6):
+        if j == g.link:
+            continue
+        bar = pts[2 * j] + lam * (pts[2 * j + 1] - pts[2 * j])  # (100, 3)
+        moved = np.einsum("tab,nb->tna", rel[:, j, :3, :3], bar) + rel[:, j, None, :3, 3]
+        d = np.linalg.norm(moved[:, :, None] - col[None, None], axis=-1).min()
+        spacing = max(np.linalg.norm(pts[2 * j + 1] - pts[2 * j]) / 99,
+                      np.linalg.norm(g.bottom - g.top) / 199)
+        assert d - g.radius - radius + spacing >= g.clearance
     with pytest.raises(FabricationError) as err:  # A_0 points straight down, so ground above
-        grounding.ground_column(jf, pts, bar_radius=radius, hub_radius=radius,
-                                hub_extent=0.0, axis=0, ground_z=float(pts[:, 2].max()) + 1)
+        grounding.ground_column(jf, pts, bar_radius=radius, hub_radius=radius, hub_extent=0.0,
+                                link=0, axis=0, ground_z=float(pts[:, 2].max()) + 1)
     assert err.value.reason == "grounding"
     with pytest.raises(FabricationError):
         grounding.ground_column(jf, pts, bar_radius=-1.0, hub_radius=radius, hub_extent=0.0)

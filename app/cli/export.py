@@ -59,7 +59,7 @@ def cmd_export(args: argparse.Namespace) -> int:
         printer = _printer(args)
         result = printable.export_printable(
             real, printer=printer, size_mm=args.size_mm, print_in_place=args.print_in_place,
-            ground=not args.no_ground, ground_axis=args.ground_axis,
+            ground=not args.no_ground, ground_axis=args.ground_axis, ground_link=args.ground_link,
             space_radius=args.carve_radius, resolution=args.resolution, samples=args.samples,
             effector=sol.end_effector, rhino=args.rhino,
             progress=None if args.quiet else _print_progress)
@@ -126,8 +126,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="joint clearance in mm (default: the printer's, 0.3)")
     p.add_argument("--print-in-place", action="store_true", help="captured pins with heads")
     p.add_argument("--no-ground", action="store_true", help="no grounding column")
-    p.add_argument("--ground-axis", type=int, choices=(0, 5), default=None,
-                   help="base-link axis carrying the grounding column (default: first that works)")
+    p.add_argument("--ground-link", type=int, choices=range(6), default=None,
+                   help="link that stands on the ground (default: the one whose column keeps "
+                        "the largest clearance)")
+    p.add_argument("--ground-axis", type=int, choices=range(6), default=None,
+                   help="axis carrying the grounding column, one of the grounded link's two "
+                        "(link g: A_{g-1} or A_g; default: the best)")
     p.add_argument("--carve-radius", type=outputs.float_range(0.0, 1e12, lo_open=True),
                    default=None,
                    help="carve design spaces of this radius (design units) as link bodies")

@@ -332,6 +332,7 @@ def stage(progress: Progress | None, lo: float, hi: float) -> Progress | None:
 
 def export_parts(joint_factors: np.ndarray, points: np.ndarray, radius: float, *,
                  spec: PartSpec | None = None, ground: bool = True, ground_axis: int | None = None,
+                 ground_link: int | None = None,
                  ground_z: float | None = None,
                  space_radius: float | Sequence[float] | None = None,
                  resolution: int = 128, order: Sequence[tuple[int, int]] = carve.DEFAULT_ORDER,
@@ -341,8 +342,9 @@ def export_parts(joint_factors: np.ndarray, points: np.ndarray, radius: float, *
                  bed_mm: tuple = DEFAULT_BED_MM, with_guide: bool = True,
                  rhino: bool = False) -> ExportResult:
     """Parts of a realized loop (``joint_factors`` ``(6, 8)``, ``points`` ``(12, 3)``, bar
-    ``radius``, design units) at ``spec.size_mm``, with a grounding column on link 0
-    (``ground``; ``ground_z`` in design units) and, if ``space_radius`` is given (one value:
+    ``radius``, design units) at ``spec.size_mm``, with a grounding column (``ground``; on
+    ``ground_link`` along ``ground_axis``, default the best, see :mod:`grounding`;
+    ``ground_z`` in design units) and, if ``space_radius`` is given (one value:
     base link twice; or six, e.g. ``Realization.design_space_radii``), carved design spaces as
     link bodies (:func:`carve_design_spaces`); exported and verified. ``effector``: the
     end-effector (``Solution.end_effector`` or its ``EndEffector``; None: none): link 3 is then
@@ -363,9 +365,6 @@ def export_parts(joint_factors: np.ndarray, points: np.ndarray, radius: float, *
         report["carving"] = {**cv.report, "meshed": [b is not None for b in bodies]}
     extras = None
     if ground:
-        if rs.print_in_place and ground_axis == 5:
-            raise FabricationError("print-in-place parts ground through A_0 only (A_5 carries "
-                                   "link 5's pin head)", "bad-parameters")
         gz = _zones_extent(rs)
         bars = [pts[[2 * i, 2 * i + 1]][None] * scale for i in range(6)]
         if el is not None:
@@ -377,20 +376,21 @@ def export_parts(joint_factors: np.ndarray, points: np.ndarray, radius: float, *
             [(c[0] / scale, c[1] / scale, c[2] / scale) for c in parts.principal_capsules(solid)]
         g = grounding.ground_column(
             joint_factors, pts, bar_radius=rs.rho_mm / scale, hub_radius=gz[0] / scale,
-            hub_extent=gz[1] / scale, axis=0 if rs.print_in_place else ground_axis,
+            hub_extent=gz[1] / scale, link=ground_link, axis=ground_axis,
+            pin_heads=rs.print_in_place,
             ground_z=ground_z, end_link=end_caps, splits=splits)
         top, bottom = g.top * scale, g.bottom * scale
         # start 1 mm (at most half its length) inside the base link's boss: no touching faces
-        z = zones[g.axis]  # link 0 holds the lower boss of joint 0, the upper one of joint 5
-        boss = z.split - z.gap / 2 if g.axis == 0 else z.length - z.split - z.gap / 2
+        z = zones[g.axis]  # link g holds the lower boss of joint g, the upper one of joint g-1
+        boss = z.split - z.gap / 2 if g.axis == g.link else z.length - z.split - z.gap / 2
         top = top + (top - bottom) / np.linalg.norm(top - bottom) * min(1.0, 0.5 * boss)
         foot0 = np.array([bottom[0], bottom[1], g.ground_z * scale])
         foot1 = foot0 + [0.0, 0.0, g.foot_height * scale]
         r, rf = g.radius * scale, g.foot_radius * scale
-        extras = {0: [(parts.cylinder(top, bottom, r, rs.segments), np.stack([top, bottom]), r),
-                      (parts.cylinder(foot0, foot1, rf, rs.segments), np.stack([foot0, foot1]),
-                       rf)]}
-        report["grounding"] = {"axis": g.axis, "ground_z_mm": g.ground_z * scale,
+        extras = {g.link: [
+            (parts.cylinder(top, bottom, r, rs.segments), np.stack([top, bottom]), r),
+            (parts.cylinder(foot0, foot1, rf, rs.segments), np.stack([foot0, foot1]), rf)]}
+        report["grounding"] = {"link": g.link, "axis": g.axis, "ground_z_mm": g.ground_z * scale,
                                "column_radius_mm": r, "certified_clearance_mm":
                                    g.clearance * scale,
                                "sampled_clearance_mm": g.sampled_clearance * scale}

@@ -50,7 +50,7 @@ def export_printable(realization: Realization, *,
     auto = size_mm is None
     sz = sizing.choose_size(lim, printer, size_mm)
     warnings: list[str] = []
-    for _ in range(_FIT_ROUNDS + 1):
+    for _ in range(_FIT_ROUNDS + 2):  # the first size, the smaller ones, one column dropped
         spec = PartSpec(size_mm=sz.size_mm, clearance_mm=printer.clearance_mm,
                         rho_mm=sz.bar_radius_mm, boss_radius_mm=sz.boss_radius_mm,
                         pin_radius_mm=sz.pin_radius_mm, print_in_place=print_in_place)
@@ -68,6 +68,15 @@ def export_printable(realization: Realization, *,
                                          ground=False, **build)
         extents = part_extents(result)
         fit = sizing.fits_bed(extents, printer)
+        column = result.report.get("grounding", {}).get("link")
+        if column is not None and not fit.all() and set(np.flatnonzero(~fit)) == {column}:
+            # only the column's part is too long: drop the column, keep the size
+            ground = False
+            warnings.append(f"exported without a grounding column: on link {column} it makes "
+                            f"the part {extents[column].max():.0f} mm long, more than the bed "
+                            f"{_bed(printer)} mm (choose --ground-link, a larger bed or a "
+                            "smaller --size-mm)")
+            continue
         if fit.all() or not auto:
             break
         smaller = sz.size_mm * min(float(np.min(np.sort(printer.bed_mm) / extents[~fit])), 0.99)
