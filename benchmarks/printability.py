@@ -39,7 +39,8 @@ def run_one(item: tuple[str, object]) -> dict:
         real = sol.realization
         if real is None:
             return {**row, "outcome": "not realized", "time": time.perf_counter() - t0}
-        res = printable.export_printable(real, effector=sol.end_effector)
+        res = printable.export_printable(real, effector=sol.end_effector,
+                                         fixed=dict(design.realization.fixed))
     except ValueError as exc:  # the CLI's refusals (FabricationError etc.)
         return {**row, "outcome": f"refused: {' '.join(str(exc).split()[:12])}",
                 "time": time.perf_counter() - t0}
@@ -47,7 +48,8 @@ def run_one(item: tuple[str, object]) -> dict:
     return {**row, "outcome": "ok" if ver["ok"] else "unverified", "printable": ver["printable"],
             "size_mm": sz["size_mm"], "wall_mm": 2 * sz["bar_radius_mm"],
             "largest_mm": float(np.max(printable.part_extents(res))),
-            "min_gap_mm": ver["min_gap_mm"], "time": time.perf_counter() - t0}
+            "min_gap_mm": ver["min_gap_mm"], "roomier": sz["realization"],
+            "time": time.perf_counter() - t0}
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -63,7 +65,8 @@ def main(argv: list[str] | None = None) -> None:
         rows.append(row)
         extra = "" if "size_mm" not in row else (
             f" size {row['size_mm']:.0f} mm, wall {row['wall_mm']:.2f} mm, largest part "
-            f"{row['largest_mm']:.0f} mm, min gap {row['min_gap_mm']:.3f} mm")
+            f"{row['largest_mm']:.0f} mm, min gap {row['min_gap_mm']:.3f} mm"
+            + (f"; {row['roomier']}" if row.get("roomier") else ""))
         print(f"{row['design']:>16}: {row['outcome']}{extra} ({row['time']:.1f} s)", flush=True)
     if pool:
         pool.close()

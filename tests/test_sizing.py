@@ -80,3 +80,22 @@ def test_plain_export_sizes_for_the_printer(tmp_path):
     assert sz["chosen"] == "auto" and all(sz["fits_bed"])
     assert sz["size_mm"] >= sz["min_size_mm"] and sz["pin_radius_mm"] >= 1.0
     assert sz["boss_radius_mm"] >= sz["pin_radius_mm"] + 0.3 + 2.0 - 1e-9
+
+
+def test_roomier_realization_when_the_bed_is_too_small():
+    """A realization too thin for the bed is realized again with larger d and rho, certified."""
+    from test_parts import example_loop
+
+    from paraloop_core.fabrication import printable
+    from paraloop_core.realization import realize
+
+    jf, _, _ = example_loop()
+    real = realize.realize(jf)
+    need = printable.min_size_mm(real, GENERIC)
+    roomy_bed = sizing.Printer("roomy", (need * 2,) * 3)
+    assert printable.roomier(real, roomy_bed) == (real, None)
+    small = sizing.Printer("small", (need * 0.8,) * 3)
+    new, note = printable.roomier(real, small)
+    assert new is not real and "realized again" in note  # this loop has room to spare
+    assert printable.min_size_mm(new, small) <= max(small.bed_mm) < need
+    assert new.certified_clearance >= 2 * new.radius and new.radius > real.radius

@@ -61,7 +61,7 @@ def cmd_export(args: argparse.Namespace) -> int:
             real, printer=printer, size_mm=args.size_mm, print_in_place=args.print_in_place,
             ground=not args.no_ground, ground_axis=args.ground_axis, ground_link=args.ground_link,
             space_radius=args.carve_radius, resolution=args.resolution, samples=args.samples,
-            effector=sol.end_effector, rhino=args.rhino,
+            effector=sol.end_effector, rhino=args.rhino, fixed=dict(design.realization.fixed),
             progress=None if args.quiet else _print_progress)
     except RealizationError as exc:
         print(f"error: {path}: {outputs.one_line(exc)}", file=sys.stderr)

@@ -13,6 +13,11 @@
 
 When no size meets every constraint the :class:`FabricationError` names the conflict and the
 best reachable size.
+
+:func:`roomier` comes first: the realization's certified clearances are relative to the loop,
+so a thin realization (the default offset d is 1 % of the polyline) needs a large print. If its
+smallest printable size exceeds the bed, the loop is realized again with d and rho times
+:data:`ROOMIER` (a new, equally certified search) and the first that fits is used.
 """
 
 from __future__ import annotations
@@ -21,14 +26,55 @@ from dataclasses import replace
 
 import numpy as np
 
-from paraloop_core.errors import FabricationError
+from paraloop_core.errors import FabricationError, RealizationError
 from paraloop_core.fabrication import export, guide, sizing
 from paraloop_core.fabrication.export import ExportResult
 from paraloop_core.fabrication.parts import Assembly, PartSpec
+from paraloop_core.realization import realize
 from paraloop_core.realization.realize import Realization
 
 #: Rebuilds allowed to shrink an automatically sized assembly onto the bed.
 _FIT_ROUNDS = 3
+#: Factors on d and rho of the realizations :func:`roomier` tries, and the work budget of each
+#: (``realize.Search.work``).
+ROOMIER = (2.0, 4.0, 8.0)
+ROOMIER_WORK = 12_000
+
+
+def min_size_mm(real: Realization, printer: sizing.Printer) -> float:
+    """Smallest size (mm) at which the parts of ``real`` meet ``printer``'s profile."""
+    lim = sizing.limits(real.points, real.pairs, real.pair_lower, real.joint_lower)
+    return sizing.choose_size(lim, printer).min_size_mm
+
+
+def roomier(real: Realization, printer: sizing.Printer,
+            fixed: dict[int, float] | None = None) -> tuple[Realization, str | None]:
+    """``real`` if its smallest printable size fits the bed (longest side), else the loop
+    realized with d and rho times the first factor of :data:`ROOMIER` that fits (or the
+    smallest reached), and a note saying so; ``fixed`` vertices as in the design."""
+    need = min_size_mm(real, printer)
+    if need <= max(printer.bed_mm):
+        return real, None
+    best, factor, tried = real, 1.0, []
+    for f in ROOMIER:
+        try:
+            r = realize.realize(real.joint_factors, p=real.p, d=real.separation * f,
+                                rho=real.radius * f, fixed=fixed, budget=ROOMIER_WORK)
+        except RealizationError as exc:
+            tried.append(f"x{f:g}: {exc.reason}")
+            continue
+        m = min_size_mm(r, printer)
+        tried.append(f"x{f:g}: {m:.0f} mm")
+        if m < min_size_mm(best, printer):
+            best, factor = r, f
+        if m <= max(printer.bed_mm):
+            break
+    if best is real:
+        return real, (f"the realization needs {need:.0f} mm to print and no roomier one was "
+                      f"found (d and rho {', '.join(tried)})")
+    return best, (f"realized again with d and rho x{factor:g} for printing (the design's "
+                  f"realization needs {need:.0f} mm, this one "
+                  f"{min_size_mm(best, printer):.0f} mm); certified like the first")
 
 
 def part_extents(result: ExportResult) -> np.ndarray:
@@ -40,16 +86,23 @@ def export_printable(realization: Realization, *,
                      printer: sizing.Printer = sizing.PRINTERS["generic"],
                      size_mm: float | None = None, print_in_place: bool = False,
                      ground: bool = True, samples: int = 720,
+                     fixed: dict[int, float] | None = None,
                      progress: export.Progress | None = None, **options) -> ExportResult:
     """Parts of ``realization`` sized for ``printer`` (module docstring); ``options`` as
     :func:`export.export_parts`. The parts are built (and exported) per size tried, verified
     once at the last. The report gains ``sizing`` (size, radii, minimum size and its binding
-    constraint, the printer, bed fit) and ``warnings``."""
-    real = realization
+    constraint, the printer, bed fit, ``realization``: what :func:`roomier` did) and
+    ``warnings``; ``fixed``: the design's fixed vertices (for :func:`roomier`, used with an
+    automatic size and no end-effector)."""
+    real, note = realization, None
+    warnings: list[str] = []
+    if size_mm is None and options.get("effector") is None:
+        real, note = roomier(realization, printer, fixed)
+        if note is not None:
+            warnings.append(note)
     lim = sizing.limits(real.points, real.pairs, real.pair_lower, real.joint_lower)
     auto = size_mm is None
     sz = sizing.choose_size(lim, printer, size_mm)
-    warnings: list[str] = []
     for _ in range(_FIT_ROUNDS + 2):  # the first size, the smaller ones, one column dropped
         spec = PartSpec(size_mm=sz.size_mm, clearance_mm=printer.clearance_mm,
                         rho_mm=sz.bar_radius_mm, boss_radius_mm=sz.boss_radius_mm,
@@ -104,7 +157,8 @@ def export_printable(realization: Realization, *,
         "bar_radius_mm": sz.bar_radius_mm, "boss_radius_mm": sz.boss_radius_mm,
         "pin_radius_mm": sz.pin_radius_mm, "min_size_mm": sz.min_size_mm,
         "binding_constraint": sz.binding, "printer": printer.name, "bed_mm": printer.bed_mm,
-        "wall_mm": printer.wall_mm, "fits_bed": fit.tolist()}
+        "wall_mm": printer.wall_mm, "fits_bed": fit.tolist(), "realization": note,
+        "realization_radius": real.radius, "realization_separation": real.separation}
     report["warnings"] = warnings
     files = [(n, b) for n, b in result.files if n != "report.json"]
     meshes = {p.name: export.part_trimesh(p) for p in result.assembly.parts}
