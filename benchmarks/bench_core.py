@@ -12,6 +12,7 @@ import numpy as np
 
 from paraloop_core import design, pipeline
 from paraloop_core.algebra import factor, poly
+from paraloop_core.linkage import singularity
 from paraloop_core.validation import table1
 
 
@@ -44,7 +45,11 @@ def main() -> None:
 
     path = Path(__file__).resolve().parents[1] / "assets" / "designs" / "tv8.json"
     d = design.load_design(path)
-    pipeline.solve(d, realize=False)
+    jf = np.stack([lp.joint_factors for lp in pipeline.solve(d, realize=False).loops])
+    unit = pipeline.unit_length(pipeline.design_poses(d))
+    sing = _timeit(lambda: singularity.singularity_min(jf, length=unit), 200)
+    print(f"singularity minimum of the nine loops ({path.name}): "
+          f"median {np.median(sing) * 1e3:.2f} ms")
     full = _timeit(lambda: pipeline.solve(d, realize=False), 200)
     print(f"four-pose + six factorizations + nine loops + singularity ({path.name}): "
           f"median {np.median(full) * 1e3:.2f} ms, p95 {np.percentile(full, 95) * 1e3:.2f} ms")
