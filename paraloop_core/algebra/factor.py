@@ -239,7 +239,7 @@ def all_factorizations_batch(c_monic: np.ndarray) -> Factorizations:
     c_monic = np.asarray(c_monic, dtype=np.float64)
     if c_monic.shape[-2:] != (4, 8):
         raise ValueError(f"a cubic motion polynomial must be (..., 4, 8), got {c_monic.shape}")
-    h, quads, code, a, b, unit = _hss_conditioned(c_monic)
+    h, quads, code, a, b, length = _hss_conditioned(c_monic)
     out = [None] * 6
     out[0] = h
     for src, pos, dst in _FLIP_PLAN:
@@ -248,41 +248,40 @@ def all_factorizations_batch(c_monic: np.ndarray) -> Factorizations:
         f[..., pos, :], f[..., pos + 1, :] = k1, k2
         out[dst] = f
         code = np.where(~ok & (code == 0), 3, code)
-    return Factorizations(_unconditioned(np.stack(out, axis=-3), a, b, unit), quads, code)
+    return Factorizations(_unconditioned(np.stack(out, axis=-3), a, b, length), quads, code)
 
 
 def hss_batch(c_monic: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """One factorization (HSS13a, norm order A, B, C) ``(..., n, 8)`` of monic ``C``
     ``(..., n+1, 8)``, computed in the conditioned frame like :func:`all_factorizations_batch`,
     and a reason code ``(...)`` (float64's suspicion: nonzero items are meaningless)."""
-    h, _, code, a, b, unit = _hss_conditioned(np.asarray(c_monic, dtype=np.float64))
-    return _unconditioned(h, a, b, unit), code
+    h, _, code, a, b, length = _hss_conditioned(np.asarray(c_monic, dtype=np.float64))
+    return _unconditioned(h, a, b, length), code
 
 
 def _hss_conditioned(c_monic: np.ndarray) -> tuple[np.ndarray, ...]:
-    """``(h_s, quads, code, a, b, unit)``: HSS factors in the conditioned frame, the labelled
+    """``(h_s, quads, code, a, b, length)``: HSS factors in the conditioned frame, the labelled
     norm quadratics in t, the code, and the map back (:func:`_unconditioned`)."""
-    cs, a, b, unit = _conditioned(c_monic)
+    cs, a, b, length = _conditioned(c_monic)
     quads, quads_s, code = _labelled_quadratics(cs, a, b)
     h, hcode = factorize_batch(cs, quads_s)
-    return h, quads, np.where(code == 0, hcode, code), a, b, unit
+    return h, quads, np.where(code == 0, hcode, code), a, b, length
 
 
 def _conditioned(c_monic: np.ndarray) -> tuple[np.ndarray, ...]:
-    """``(cs, a, b, unit)``: the conditioned cubic ``cs`` (parameter ``s``, ``t = a s + b``,
-    dual part multiplied by ``unit[4:]``) of :func:`conditioning_batch`."""
+    """``(cs, a, b, length)``: the conditioned cubic ``cs`` (parameter ``s``, ``t = a s + b``,
+    lengths divided by ``length``) of :func:`conditioning_batch`."""
     cs, a, b, length = _conditioning(c_monic)
-    unit = np.concatenate([np.ones(a.shape + (4,)), np.ones(a.shape + (4,)) / length[..., None]],
-                          axis=-1)
-    return cs * unit[..., None, :], a, b, unit
+    return dq.scale_lengths(cs, 1.0 / length[..., None]), a, b, length
 
 
-def _unconditioned(h: np.ndarray, a: np.ndarray, b: np.ndarray, unit: np.ndarray) -> np.ndarray:
+def _unconditioned(h: np.ndarray, a: np.ndarray, b: np.ndarray, length: np.ndarray
+                   ) -> np.ndarray:
     """Factors ``(..., K, n, 8)`` or ``(..., n, 8)`` of the conditioned cubic mapped back:
     ``h = a h_s + b`` with the dual part in the caller's length unit."""
     extra = h.ndim - a.ndim - 1
     ex = (slice(None),) * a.ndim + (None,) * extra
-    h = h / unit[ex] * a[ex + (None,)]
+    h = dq.scale_lengths(h, length[ex]) * a[ex + (None,)]
     h[..., 0] += b[ex]
     return h
 
@@ -333,12 +332,12 @@ def factorize(c: np.ndarray, order: list[int] | None = None) -> np.ndarray:
     order = list(range(n)) if order is None else list(order)
     if sorted(order) != list(range(n)):
         raise ValueError(f"order must be a permutation of 0..{n - 1}, got {order}")
-    cs, a, b, unit = _conditioned(mono)
+    cs, a, b, length = _conditioned(mono)
     _, quads_s, code = _labelled_quadratics(cs, a, b)
     raise_for_code(int(code))
     h, hcode = factorize_batch(cs, quads_s[order])
     raise_for_code(int(hcode))
-    return _unconditioned(h, a, b, unit)
+    return _unconditioned(h, a, b, length)
 
 
 def all_factorizations(c: np.ndarray) -> Factorizations:

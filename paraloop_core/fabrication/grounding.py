@@ -79,9 +79,9 @@ def _poses_about(jf: np.ndarray, link: int, u: np.ndarray) -> np.ndarray:
 
 
 def _column_gaps(jf: np.ndarray, caps: list, top: np.ndarray, bottom: np.ndarray, r: float,
-                 link: int, axis: int, u: np.ndarray) -> tuple[float, float]:
-    """(certified, sampled) distance between the column capsule of ``link`` and the others."""
-    poses = _poses_about(jf, link, u)  # (T, 6, 4, 4)
+                 link: int, axis: int, u: np.ndarray, poses: np.ndarray) -> tuple[float, float]:
+    """(certified, sampled) distance between the column capsule of ``link`` and the others;
+    ``poses`` (:func:`_poses_about`) at ``u``."""
     best_c, best_s = np.inf, np.inf
     for j in range(6):
         if j == link:
@@ -137,7 +137,8 @@ def ground_column(joint_factors: np.ndarray, points: np.ndarray, *, bar_radius: 
     u = np.arange(samples) / samples
     tried, best = [], None
     for g in sorted({g for g, _ in candidates}):
-        gz = _ground_below(jf, caps, g, u) - margin if ground_z is None else ground_z
+        poses = _poses_about(jf, g, u)  # (T, 6, 4, 4)
+        gz = _ground_below(jf, caps, g, u, poses) - margin if ground_z is None else ground_z
         for ax in [a for h, a in candidates if h == g]:
             # link g holds E_g on A_g (neighbour S_{g+1}) and S_g on A_{g-1} (neighbour E_{g-1})
             top = pts[2 * g + 1] if ax == g else pts[2 * g]
@@ -151,7 +152,7 @@ def ground_column(joint_factors: np.ndarray, points: np.ndarray, *, bar_radius: 
                 continue
             bottom = top + (gz - top[2]) / away[2] * away
             start = top + r * away  # the first r lies inside the link's own hub
-            cert, sampled = _column_gaps(jf, caps, start, bottom, r, g, ax, u)
+            cert, sampled = _column_gaps(jf, caps, start, bottom, r, g, ax, u, poses)
             if cert <= 0:
                 tried.append(f"link {g} on A_{ax}: the column comes within {sampled:.4g} of a "
                              f"moving link (certified {cert:.4g})")
@@ -164,10 +165,10 @@ def ground_column(joint_factors: np.ndarray, points: np.ndarray, *, bar_radius: 
     return best
 
 
-def _ground_below(jf: np.ndarray, caps: list, link: int, u: np.ndarray) -> float:
-    """Lowest point (z) of the linkage swept about ``link`` over the cycle: sampled, made safe
-    by the motion between samples."""
-    poses = _poses_about(jf, link, u)
+def _ground_below(jf: np.ndarray, caps: list, link: int, u: np.ndarray,
+                  poses: np.ndarray) -> float:
+    """Lowest point (z) of the linkage swept about ``link`` over the cycle (``poses`` at
+    ``u``): sampled, made safe by the motion between samples."""
     lowest = np.inf
     for j in range(6):
         ends = np.array([p for c in caps[j] for p in c[:2]])

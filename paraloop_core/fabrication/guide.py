@@ -121,7 +121,7 @@ def _joint_text(i: int) -> str:
     return f"joint {i} (axis A_{i}): the pin of link_{i} goes into the bore of link_{(i + 1) % 6}"
 
 
-def _step_picture(asm: Assembly, upto: int, joint: int | None) -> bytes:
+def _step_picture(asm: Assembly, upto: int, joint: int | None, title: str) -> bytes:
     """PNG: links ``0..upto`` at home as their capsule centre lines (new one in colour), the
     joint being assembled as a dashed axis line."""
     import matplotlib
@@ -145,7 +145,7 @@ def _step_picture(asm: Assembly, upto: int, joint: int | None) -> bytes:
     for setter, c in zip((ax.set_xlim, ax.set_ylim, ax.set_zlim), mid, strict=True):
         setter(c - half, c + half)
     ax.set_axis_off()
-    ax.set_title(f"step {upto + 1}" if joint != 5 or upto != 5 else "close the loop", fontsize=9)
+    ax.set_title(title, fontsize=9)
     buf = io.BytesIO()
     fig.savefig(buf, format="png", bbox_inches="tight")
     plt.close(fig)
@@ -205,7 +205,8 @@ def guide_pages(asm: Assembly, meshes: dict[str, trimesh.Trimesh], layout: list[
                     if k < 6 else "Close the loop: turn the joints until the pin of link_5 lines "
                     "up with the bore of link_0 (the pose of `assembly.glb`) and slide it in.")
             name = f"assembly_step_{k + 1}.png"
-            pictures.append((name, _step_picture(asm, upto, joint)))
+            title = "close the loop" if k == 6 else f"step {k + 1}"
+            pictures.append((name, _step_picture(asm, upto, joint, title)))
             lines += [f"{k + 1}. {text}", "", f"   ![step {k + 1}]({name})", ""]
         lines += ["The pins are not captured: they slide in their bores. Secure each pin end "
                   "(a washer glued to the pin tip, not to the bore) or export with "

@@ -55,7 +55,7 @@ def roomier(real: Realization, printer: sizing.Printer,
     need = min_size_mm(real, printer)
     if need <= max(printer.bed_mm):
         return real, None
-    best, factor, tried = real, 1.0, []
+    best, best_size, factor, tried = real, need, 1.0, []
     for f in ROOMIER:
         try:
             r = realize.realize(real.joint_factors, p=real.p, d=real.separation * f,
@@ -65,16 +65,16 @@ def roomier(real: Realization, printer: sizing.Printer,
             continue
         m = min_size_mm(r, printer)
         tried.append(f"x{f:g}: {m:.0f} mm")
-        if m < min_size_mm(best, printer):
-            best, factor = r, f
+        if m < best_size:
+            best, best_size, factor = r, m, f
         if m <= max(printer.bed_mm):
             break
     if best is real:
         return real, (f"the realization needs {need:.0f} mm to print and no roomier one was "
                       f"found (d and rho {', '.join(tried)})")
     return best, (f"realized again with d and rho x{factor:g} for printing (the design's "
-                  f"realization needs {need:.0f} mm, this one "
-                  f"{min_size_mm(best, printer):.0f} mm); certified like the first")
+                  f"realization needs {need:.0f} mm, this one {best_size:.0f} mm); certified "
+                  "like the first")
 
 
 def part_extents(result: ExportResult) -> np.ndarray:
