@@ -22,6 +22,14 @@ class Tolerance:
     translation: float = 1e-9
     #: relative residual of products / Study condition accepted as exact.
     residual: float = 1e-7
+    #: relative residual (primal and dual parts each to their own size) of the product of the
+    #: float64 factors above which they are refined by Newton steps: motions near a singular
+    #: pose lose digits in HSS (2.6e-3 was seen), and the loop must still be the motion.
+    factor_residual: float = 1e-10
+    #: the same residual after Newton refinement above which the factorization is redone in
+    #: high precision (the float64 motion violates the Study condition by ~1e-12, which the
+    #: nearest product of exact rotations can amplify ~100-fold: 1e-10 is not always reachable).
+    factor_exact: float = 1e-8
     #: max deviation of R R^T from the identity accepted as orthonormal (then re-orthonormalized).
     orthonormal: float = 1e-6
     #: relative metric distance below which two target poses count as the same pose.
