@@ -11,8 +11,9 @@ from pathlib import Path
 import numpy as np
 
 from paraloop_core import design, pipeline
-from paraloop_core.algebra import factor, poly
+from paraloop_core.algebra import dq, factor, poly
 from paraloop_core.linkage import singularity
+from paraloop_core.motion import fourpose
 from paraloop_core.validation import table1
 
 
@@ -50,6 +51,16 @@ def main() -> None:
     sing = _timeit(lambda: singularity.singularity_min(jf, length=unit), 200)
     print(f"singularity minimum of the nine loops ({path.name}): "
           f"median {np.median(sing) * 1e3:.2f} ms")
+    poses = pipeline.design_poses(d)
+    c_rel = pipeline._four_pose(d, dq.scale_lengths(poses, 1.0 / unit), unit)[0]
+    monic = fourpose.world_motion(poses[0], dq.scale_lengths(c_rel, unit))
+    stages = {
+        "four-pose": lambda: pipeline._four_pose(d, dq.scale_lengths(poses, 1.0 / unit), unit),
+        "six factorizations": lambda: factor.all_factorizations(monic),
+        "singularity": lambda: singularity.singularity_min(jf, length=unit),
+    }
+    print("per stage (" + path.name + "): " + ", ".join(
+        f"{name} {np.median(_timeit(fn, 200)) * 1e3:.2f} ms" for name, fn in stages.items()))
     full = _timeit(lambda: pipeline.solve(d, realize=False), 200)
     print(f"four-pose + six factorizations + nine loops + singularity ({path.name}): "
           f"median {np.median(full) * 1e3:.2f} ms, p95 {np.percentile(full, 95) * 1e3:.2f} ms")

@@ -128,7 +128,7 @@ def solve(design: Design, *, realize: bool = True, other_loops: bool = True) -> 
     monic = fourpose.world_motion(reference, c_rel)
     facts = factor.all_factorizations(monic)
     loop_list = loops.nine_loops(facts)
-    jf = np.stack([lp.joint_factors for lp in loop_list])
+    jf = loops.loop_joint_factors(facts.factors)  # (9, 6, 8), as in loop_list
     s_min, s_t = singularity.singularity_min(jf, length=unit)
     motion = dq.mul(monic, reference)
     sol = Solution(design, motion, monic, reference, pose_t, mu, facts, loop_list, s_min, s_t,

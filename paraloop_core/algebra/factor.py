@@ -9,6 +9,7 @@ with direction ``h[1:4]`` and moment ``h[5:8]`` (MATH section 1).
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -56,6 +57,15 @@ def _conditioning(c_monic: np.ndarray) -> tuple[np.ndarray, ...]:
     return cs, a, b, length
 
 
+_PM1 = np.array([1.0, -1.0])  # r^2 + 1 and r^2 - 1 in hyperbolic_center
+
+
+@functools.cache
+def _pairs(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Index arrays ``(i, j)`` of the pairs ``i < j`` of ``n`` items (cached)."""
+    return np.triu_indices(n, 1)
+
+
 def hyperbolic_center(z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``(x, y)`` ``(...)``: a point ``x + i y`` of the upper half plane whose largest hyperbolic
     distance to the points ``z`` ``(..., n)`` is (nearly) smallest, chosen among the points, the
@@ -64,9 +74,9 @@ def hyperbolic_center(z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     z = np.where(np.isfinite(z) & (z.imag > 0), z, 1j)
     x, y = z.real, z.imag
     r2 = x * x + y * y
-    hyp = np.stack([(r2 + 1) / (2 * y), (r2 - 1) / (2 * y), x / y], axis=-1)  # (..., n, 3)
-    n = z.shape[-1]
-    i, j = np.triu_indices(n, 1)
+    y2 = (2 * y)[..., None]
+    hyp = np.concatenate([(r2[..., None] + _PM1) / y2, (x / y)[..., None]], -1)  # (..., n, 3)
+    i, j = _pairs(z.shape[-1])
     sums = np.concatenate([hyp, hyp[..., i, :] + hyp[..., j, :], hyp.sum(-2, keepdims=True)],
                           axis=-2)
     lorentz = sums[..., 0] ** 2 - sums[..., 1] ** 2 - sums[..., 2] ** 2
@@ -122,10 +132,10 @@ def _conditioned_roots(cs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     n = cs.shape[-2] - 1
     z = _upper_roots(poly.norm_poly(cs), n)
     y = z.imag
-    real = np.any(y <= 0.0, axis=-1)
+    real = (y <= 0.0).any(axis=-1)
     code = np.zeros(z.shape[:-1], dtype=np.int8)
     if n > 1:
-        i, j = np.triu_indices(n, 1)
+        i, j = _pairs(n)
         yy = np.maximum(y[..., i] * y[..., j], 1e-300)
         sep = np.abs(z[..., i] - z[..., j]) ** 2 / (2.0 * yy)
         code = np.where(np.sqrt(sep.min(axis=-1) / 2.0) <= TOL.repeated, 2, code)
@@ -141,22 +151,19 @@ def factorize_batch(c_monic: np.ndarray, quads: np.ndarray) -> tuple[np.ndarray,
     """
     n = c_monic.shape[-2] - 1
     cur = c_monic
-    hs = [None] * n
+    h = np.empty(c_monic.shape[:-2] + (n, 8))
     code = np.zeros(c_monic.shape[:-2], dtype=np.int8)
     for i in range(n - 1, -1, -1):
         rem = poly.mod_quadratic(cur, quads[..., i, :])
         r0, r1 = rem[..., 0, :], rem[..., 1, :]
-        p1 = np.linalg.norm(r1[..., :4], axis=-1)
+        p1 = np.sqrt((r1[..., :4] ** 2).sum(axis=-1))
         bad = p1 <= TOL.singular * (1e-300 + np.abs(rem).max(axis=(-2, -1)))
         code = np.where(bad & (code == 0), 3, code)
         r1 = np.where(bad[..., None], dq.IDENTITY, r1)
-        h = -dq.mul(dq.inv(r1), r0)
-        h = clean_factor(h)
-        hs[i] = h
-        cur, _ = poly.right_divide_linear(cur, h)
-    h = np.stack(hs, axis=-2)
-    pnorm = np.linalg.norm(h[..., 1:4], axis=-1)
-    trans = np.any(pnorm <= TOL.translation * (1.0 + np.abs(h).max(axis=-1)), axis=-1)
+        h[..., i, :] = clean_factor(-dq.mul(dq.inv(r1), r0))
+        cur, _ = poly.right_divide_linear(cur, h[..., i, :])
+    pnorm = np.sqrt((h[..., 1:4] ** 2).sum(axis=-1))
+    trans = (pnorm <= TOL.translation * (1.0 + np.abs(h).max(axis=-1))).any(axis=-1)
     code = np.where(trans & (code == 0), 4, code)
     return h, code
 
@@ -166,8 +173,8 @@ def clean_factor(h: np.ndarray) -> np.ndarray:
     h = h.copy()
     h[..., 4] = 0.0
     p = h[..., 1:4]
-    pp = np.maximum(np.sum(p * p, -1, keepdims=True), 1e-300)
-    h[..., 5:8] -= np.sum(p * h[..., 5:8], -1, keepdims=True) / pp * p
+    pp = np.maximum((p * p).sum(-1, keepdims=True), 1e-300)
+    h[..., 5:8] -= (p * h[..., 5:8]).sum(-1, keepdims=True) / pp * p
     return h
 
 
@@ -177,7 +184,7 @@ def bennett_flip_batch(h1: np.ndarray, h2: np.ndarray) -> tuple[np.ndarray, np.n
     Returns ``(k1, k2, ok)``; ``ok`` is False where ``X = h1~ - h2`` is not invertible.
     """
     x = dq.conj(h1) - h2
-    px = np.linalg.norm(x[..., :4], axis=-1)
+    px = np.sqrt((x[..., :4] ** 2).sum(axis=-1))
     ok = px > TOL.singular * (1.0 + np.abs(h1).max(-1) + np.abs(h2).max(-1))
     x = np.where(ok[..., None], x, dq.IDENTITY)
     k2 = clean_factor(dq.mul(dq.mul(dq.inv(x), h1), x))
@@ -188,7 +195,7 @@ def bennett_flip_batch(h1: np.ndarray, h2: np.ndarray) -> tuple[np.ndarray, np.n
 def bennett_flip(h1: np.ndarray, h2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Single Bennett flip of two rotation factors ``(8,)``; raises if not defined."""
     k1, k2, ok = bennett_flip_batch(np.asarray(h1, float), np.asarray(h2, float))
-    if not np.all(ok):
+    if not ok.all():
         raise NonGenericMotionError(
             "Bennett flip undefined: h1~ - h2 is not invertible (the two factors share their "
             "norm and axis data)",
@@ -203,6 +210,19 @@ NORM_ORDERS = np.array([[0, 1, 2], [1, 0, 2], [1, 2, 0], [2, 1, 0], [2, 0, 1], [
 #: How each of the six is reached from ABC: (source index, flip position); walks both ways
 #: round the hexagon so no chain is longer than three flips.
 _FLIP_PLAN = ((0, 0, 1), (1, 1, 2), (2, 0, 3), (0, 1, 5), (5, 0, 4))
+
+
+def _flip_stages(plan: tuple[tuple[int, int, int], ...]) -> list[tuple[np.ndarray, ...]]:
+    """The flips of ``plan`` grouped by chain length: ``(src, pos, dst)`` index arrays per
+    stage, each stage's sources computed by the earlier stages."""
+    depth = {0: 0}
+    for src, _, dst in plan:  # the plan lists every source before its use
+        depth[dst] = depth[src] + 1
+    return [tuple(np.array([f[i] for f in plan if depth[f[2]] == d]) for i in range(3))
+            for d in range(1, max(depth.values()) + 1)]
+
+
+_FLIP_STAGES = _flip_stages(_FLIP_PLAN)
 
 
 @dataclass(frozen=True)
@@ -239,20 +259,19 @@ def all_factorizations_batch(c_monic: np.ndarray) -> Factorizations:
     c_monic = np.asarray(c_monic, dtype=np.float64)
     if c_monic.shape[-2:] != (4, 8):
         raise ValueError(f"a cubic motion polynomial must be (..., 4, 8), got {c_monic.shape}")
-    h, quads, code, a, b, length = _hss_conditioned(c_monic)
-    out = [None] * 6
-    out[0] = h
-    for src, pos, dst in _FLIP_PLAN:
-        f = out[src].copy()
-        k1, k2, ok = bennett_flip_batch(f[..., pos, :], f[..., pos + 1, :])
-        f[..., pos, :], f[..., pos + 1, :] = k1, k2
-        out[dst] = f
-        code = np.where(~ok & (code == 0), 3, code)
-    fs = np.stack(out, axis=-3)
-    cs = _conditioned(c_monic)[0]
+    cs, h, quads, code, a, b, length = _hss_conditioned(c_monic)
+    fs = np.empty(h.shape[:-2] + (6, 3, 8))
+    fs[..., 0, :, :] = h
+    for src, pos, dst in _FLIP_STAGES:  # the flips of a stage are independent: one batch
+        f = fs[..., src, :, :]  # (..., k, 3, 8), a copy
+        k = np.arange(len(src))
+        k1, k2, ok = bennett_flip_batch(f[..., k, pos, :], f[..., k, pos + 1, :])
+        f[..., k, pos, :], f[..., k, pos + 1, :] = k1, k2
+        fs[..., dst, :, :] = f
+        code = np.where(~ok.all(axis=-1) & (code == 0), 3, code)
     loose = (code == 0) & (product_residual(fs, cs[..., None, :, :]).max(axis=-1)
                            > TOL.factor_residual)
-    if np.any(loose):
+    if loose.any():
         fs[loose] = refine_cubic_factors(fs[loose], cs[loose][..., None, :, :])
     return Factorizations(_unconditioned(fs, a, b, length), quads, code)
 
@@ -291,17 +310,17 @@ def hss_batch(c_monic: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """One factorization (HSS13a, norm order A, B, C) ``(..., n, 8)`` of monic ``C``
     ``(..., n+1, 8)``, computed in the conditioned frame like :func:`all_factorizations_batch`,
     and a reason code ``(...)`` (float64's suspicion: nonzero items are meaningless)."""
-    h, _, code, a, b, length = _hss_conditioned(np.asarray(c_monic, dtype=np.float64))
+    _, h, _, code, a, b, length = _hss_conditioned(np.asarray(c_monic, dtype=np.float64))
     return _unconditioned(h, a, b, length), code
 
 
 def _hss_conditioned(c_monic: np.ndarray) -> tuple[np.ndarray, ...]:
-    """``(h_s, quads, code, a, b, length)``: HSS factors in the conditioned frame, the labelled
-    norm quadratics in t, the code, and the map back (:func:`_unconditioned`)."""
+    """``(cs, h_s, quads, code, a, b, length)``: the conditioned cubic, its HSS factors, the
+    labelled norm quadratics in t, the code, and the map back (:func:`_unconditioned`)."""
     cs, a, b, length = _conditioned(c_monic)
     quads, quads_s, code = _labelled_quadratics(cs, a, b)
     h, hcode = factorize_batch(cs, quads_s)
-    return h, quads, np.where(code == 0, hcode, code), a, b, length
+    return cs, h, quads, np.where(code == 0, hcode, code), a, b, length
 
 
 def _conditioned(c_monic: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -326,9 +345,10 @@ def _labelled_quadratics(cs: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[
     """``(quads, quads_s, code)``: norm quadratics in the caller's parameter ``t`` (sorted,
     the labels A, B, C) and the same ones in the conditioned parameter ``s``; genericity code."""
     zs, code = _conditioned_roots(cs)
-    ms = np.stack([np.abs(zs) ** 2, -2.0 * zs.real], axis=-1)
     z = a[..., None] * zs + b[..., None]
-    m = np.stack([np.abs(z) ** 2, -2.0 * z.real], axis=-1)
+    both = np.concatenate([z, zs], axis=-1)[..., None]  # (..., 2n, 1): t, then s
+    m = np.concatenate([np.abs(both) ** 2, -2.0 * both.real], axis=-1)
+    m, ms = m[..., :zs.shape[-1], :], m[..., zs.shape[-1]:, :]
     order = _label_order(m)[..., None]
     return np.take_along_axis(m, order, -2), np.take_along_axis(ms, order, -2), code
 

@@ -8,6 +8,9 @@ The projective parameter line ``R u {inf}`` is sampled by ``u in [0, 1]`` via
 
 from __future__ import annotations
 
+import functools
+import math
+
 import numpy as np
 
 from paraloop_core.algebra import dq
@@ -18,7 +21,7 @@ def as_poly(c: np.ndarray, name: str = "polynomial") -> np.ndarray:
     c = np.asarray(c, dtype=np.float64)
     if c.ndim < 2 or c.shape[-1] != 8:
         raise ValueError(f"{name} must have shape (..., n+1, 8), got {c.shape}")
-    if not np.all(np.isfinite(c)):
+    if not np.isfinite(c).all():
         raise ValueError(f"{name} has non-finite coefficients")
     return c
 
@@ -41,8 +44,10 @@ def conj(c: np.ndarray) -> np.ndarray:
 def linear(h: np.ndarray) -> np.ndarray:
     """The linear polynomial ``t - h`` ``(..., 2, 8)`` for ``h`` ``(..., 8)``."""
     h = np.asarray(h, dtype=np.float64)
-    one = np.broadcast_to(dq.IDENTITY, h.shape)
-    return np.stack([-h, one], axis=-2)
+    out = np.empty(h.shape[:-1] + (2, 8))
+    np.negative(h, out=out[..., 0, :])
+    out[..., 1, :] = dq.IDENTITY
+    return out
 
 
 def from_factors(h: np.ndarray) -> np.ndarray:
@@ -98,7 +103,7 @@ def param_to_t(u: np.ndarray) -> np.ndarray:
     """Map ``u in [0, 1]`` onto the projective line: ``t = tan(pi (u - 1/2))``, inf at 0 and 1."""
     u = np.asarray(u, dtype=np.float64)
     t = np.tan(np.pi * (u - 0.5))
-    edge = np.isclose(u % 1.0, 0.0, atol=1e-15)
+    edge = np.abs(u % 1.0) <= 1e-15
     return np.where(edge, np.inf, t)
 
 
@@ -140,8 +145,8 @@ def study_poly(c: np.ndarray) -> np.ndarray:
 
 def is_motion_polynomial(c: np.ndarray, rtol: float = 1e-9) -> np.ndarray:
     """Mask ``(...)``: the Study polynomial vanishes relative to the coefficient size."""
-    scale = np.max(np.abs(c), axis=(-2, -1)) ** 2
-    return np.max(np.abs(study_poly(c)), axis=-1) <= rtol * np.maximum(scale, 1e-300)
+    scale = np.abs(c).max(axis=(-2, -1)) ** 2
+    return np.abs(study_poly(c)).max(axis=-1) <= rtol * np.maximum(scale, 1e-300)
 
 
 def make_monic(c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -155,10 +160,10 @@ def make_monic(c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     :mod:`factor` catches (and confirms in high precision)."""
     c = as_poly(c)
     lead = c[..., -1, :]
-    pn = np.linalg.norm(lead[..., :4], axis=-1)
+    pn = np.sqrt((lead[..., :4] ** 2).sum(-1))
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        monic = dq.mul(dq.inv(lead)[..., None, :], c) if np.all(pn > 0) else None
-    if monic is None or not np.all(np.isfinite(monic)):
+        monic = dq.mul(dq.inv(lead)[..., None, :], c) if (pn > 0).all() else None
+    if monic is None or not np.isfinite(monic).all():
         raise ValueError(
             "leading coefficient has zero primal part (the motion is not defined at t = inf); "
             "reparametrize the motion first"
@@ -170,12 +175,12 @@ def right_divide_linear(c: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, np.nd
     """``C = Q (t - h) + r``: returns ``(Q (..., n, 8), r (..., 8))`` with the right value
     ``r = C(h)``."""
     n = c.shape[-2] - 1
-    q = [None] * n
-    q[n - 1] = c[..., n, :]
+    q = np.empty(np.broadcast_shapes(c.shape[:-2], h.shape[:-1]) + (n, 8))
+    q[..., n - 1, :] = c[..., n, :]
     for k in range(n - 1, 0, -1):
-        q[k - 1] = c[..., k, :] + dq.mul(q[k], h)
-    r = c[..., 0, :] + dq.mul(q[0], h)
-    return np.stack(q, axis=-2), r
+        q[..., k - 1, :] = c[..., k, :] + dq.mul(q[..., k, :], h)
+    r = c[..., 0, :] + dq.mul(q[..., 0, :], h)
+    return q, r
 
 
 def mod_quadratic(c: np.ndarray, m: np.ndarray) -> np.ndarray:
@@ -198,17 +203,22 @@ def reparametrize(c: np.ndarray, a: float | np.ndarray, b: float | np.ndarray) -
     """``C(a t + b)`` (same motion, new parameter); ``a != 0``, scalars or arrays broadcasting
     against ``c``'s batch shape ``(...)``."""
     a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
-    if np.any(a == 0):
+    if (a == 0).any():
         raise ValueError("reparametrization needs a != 0")
     n = c.shape[-2] - 1
-    out = np.zeros(np.broadcast_shapes(c.shape, a.shape + (1, 1)))
-    a, b = a[..., None], b[..., None]
-    # (a t + b)^k expanded by the binomial theorem.
-    from math import comb
+    j = np.arange(n + 1)
+    # (a t + b)^k expanded by the binomial theorem: coefficient j of C(a t + b) is
+    # sum_k comb(k, j) a^j b^(k - j) c_k, one matrix product per item.
+    binom = _binomials(n)
+    shift = a[..., None, None] ** j[:, None] * b[..., None, None] ** np.maximum(j - j[:, None], 0)
+    return (binom * shift) @ c
 
-    for k in range(n + 1):
-        for j in range(k + 1):
-            out[..., j, :] += comb(k, j) * a**j * b ** (k - j) * c[..., k, :]
+
+@functools.cache
+def _binomials(n: int) -> np.ndarray:
+    """``comb(k, j)`` ``(n+1, n+1)`` at ``[j, k]`` (zero for ``j > k``); cached, read only."""
+    out = np.array([[math.comb(k, j) for k in range(n + 1)] for j in range(n + 1)], dtype=float)
+    out.flags.writeable = False
     return out
 
 
@@ -224,7 +234,7 @@ def real_poly_roots(coeffs: np.ndarray, rtol: float | None = None) -> np.ndarray
     d = coeffs.shape[-1] - 1
     if rtol is None:
         return _companion_roots(coeffs)
-    big = np.abs(coeffs) > rtol * np.max(np.abs(coeffs), axis=-1, keepdims=True)
+    big = np.abs(coeffs) > rtol * np.abs(coeffs).max(axis=-1, keepdims=True)
     deg = np.where(big.any(-1), d - np.argmax(big[..., ::-1], axis=-1), 0)
     out = np.full(coeffs.shape[:-1] + (d,), np.nan, dtype=np.complex128)
     for e in np.unique(deg[deg > 0]):  # at most d groups, each batched

@@ -23,7 +23,7 @@ LOOP_PAIRS = np.array(
      if NORM_ORDERS[f][0] != NORM_ORDERS[g][0] and NORM_ORDERS[f][2] != NORM_ORDERS[g][2]]
 )
 #: ``True`` where the loop is angle-symmetric (G is F reversed), else double-Bennett.
-LOOP_IS_AS = np.array([bool(np.all(NORM_ORDERS[g] == NORM_ORDERS[f][::-1])) for f, g in LOOP_PAIRS])
+LOOP_IS_AS = np.array([bool((NORM_ORDERS[g] == NORM_ORDERS[f][::-1]).all()) for f, g in LOOP_PAIRS])
 LOOP_KINDS = tuple("angle-symmetric" if a else "double-Bennett" for a in LOOP_IS_AS)
 #: Which link pose carries axis i: A_i is fixed in links i and i+1; we use these.
 _AXIS_LINK = np.array([0, 1, 2, 4, 5, 0])
@@ -65,7 +65,7 @@ def nine_loops(facts: Factorizations) -> list[Loop]:
 def factor_axes(h: np.ndarray) -> np.ndarray:
     """Unit Plücker lines ``(..., 6)`` = ``(p, d) / |p|`` of rotation factors ``h`` ``(..., 8)``."""
     p, d = h[..., 1:4], h[..., 5:8]
-    n = np.linalg.norm(p, axis=-1, keepdims=True)
+    n = np.sqrt((p * p).sum(-1, keepdims=True))
     return np.concatenate([p, d], axis=-1) / n
 
 

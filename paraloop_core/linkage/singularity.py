@@ -39,10 +39,8 @@ _SPEAR = [1, 2, 3, 5, 6, 7]
 _LINE = np.array([0.0, 1, 1, 1, 0, 1, 1, 1])  # keeps the line part p + eps d of a factor
 _GRID = 9  # points per zoom level (odd: the centre is kept)
 _CHUNK = 256  # matrices per batch in _curve: temporaries stay small (in cache, no mmap)
-# right multiplication by b as a matrix: a b = a @ (b @ _RIGHT).reshape(8, 8)
-_TABLE = np.array([[dq.mul(e, f) for f in np.eye(8)] for e in np.eye(8)])  # e_j e_k = T[j, k]
-_RIGHT = _TABLE.transpose(1, 0, 2).reshape(8, 64)
-_RIGHT_SPEAR = _TABLE[:, :, _SPEAR].transpose(1, 0, 2).reshape(8, 48)
+# right multiplication keeping the spear components of the product (:func:`dq.right_matrix`)
+_RIGHT_SPEAR = dq.RIGHT.reshape(8, 8, 8)[:, :, _SPEAR].reshape(8, 48)
 # coefficient n + n' of a product of two quadratics from its 3 x 3 coefficient products
 _AGG = np.array([[float(i + j == q) for i in range(3) for j in range(3)] for q in range(5)])
 _NEIGHBOURS = np.array([-1, 0, 1])
@@ -54,7 +52,7 @@ def _check_factors(joint_factors: np.ndarray, length: float) -> np.ndarray:
         raise ValueError(f"joint_factors must have shape (..., 6, 8), got {jf.shape}")
     if not np.isfinite(jf).all():
         raise ValueError("joint_factors must be finite")
-    pn = np.sqrt(np.sum(jf[..., 1:4] ** 2, axis=-1))
+    pn = np.sqrt((jf[..., 1:4] ** 2).sum(axis=-1))
     if (pn <= TOL.zero * (1.0 + np.abs(jf).max(axis=-1))).any():
         raise ValueError("a joint factor has no rotation axis (zero vector part)")
     if not (np.isfinite(length) and length > 0):
@@ -142,13 +140,7 @@ def minors_sq_sum(j: np.ndarray) -> np.ndarray:
     j = np.asarray(j, dtype=np.float64)
     frame, weights = _frame(j[..., [0, 5], :])
     z = _reduced((j[..., 1:5, :] @ frame).reshape(-1, 24).T)
-    return np.sum(weights.reshape(-1, 25).T * z * z, axis=0).reshape(j.shape[:-2])
-
-
-def _right(b: np.ndarray, table: np.ndarray = _RIGHT) -> np.ndarray:
-    """Matrices ``(..., 8, k)`` of right multiplication by dual quaternions ``b`` ``(..., 8)``:
-    ``a b = a @ _right(b)`` (components of :data:`_RIGHT` or :data:`_RIGHT_SPEAR`)."""
-    return (b @ table).reshape(b.shape[:-1] + (8, -1))
+    return (weights.reshape(-1, 25).T * z * z).sum(axis=0).reshape(j.shape[:-2])
 
 
 def _setup(jf: np.ndarray, length: float) -> tuple[np.ndarray, np.ndarray]:
@@ -162,15 +154,15 @@ def _setup(jf: np.ndarray, length: float) -> tuple[np.ndarray, np.ndarray]:
     ``t (t - h_0)``, ``t (t - h_5)`` for axes 1 and 4, whose quartics are then padded from
     ``t^2 Q`` to ``(1 + t^2) Q`` (exactly, by adding shifted coefficients)."""
     nl = len(jf)
-    unit = jf * (_LINE / np.sqrt(np.sum(jf[..., 1:4] ** 2, -1))[..., None])  # unit axis lines
+    unit = jf * (_LINE / np.sqrt((jf[..., 1:4] ** 2).sum(-1))[..., None])  # unit axis lines
     g, f = jf[:, [0, 0, 5, 5]], np.zeros((nl, 4, 8))
     f[:, 1:3] = jf[:, [1, 4]]
     lk = np.empty((nl, 4, 3, 8))  # L_k ascending: g f, -(g + f), 1
-    lk[:, :, 0] = (g[:, :, None] @ _right(f))[:, :, 0]
+    lk[:, :, 0] = (g[:, :, None] @ dq.right_matrix(f))[:, :, 0]
     lk[:, :, 1] = -(g + f)
     lk[:, :, 2] = dq.IDENTITY
-    left = lk @ _right(unit[:, 1:5])  # (L, 4, 3, 8): L_n A
-    conj = _right(dq.conj(lk), _RIGHT_SPEAR)  # (L, 4, 3, 8, 6)
+    left = lk @ dq.right_matrix(unit[:, 1:5])  # (L, 4, 3, 8): L_n A
+    conj = dq.right_matrix(dq.conj(lk), _RIGHT_SPEAR)  # (L, 4, 3, 8, 6)
     rows = left @ conj.transpose(0, 1, 3, 2, 4).reshape(nl, 4, 8, 18)  # (L, 4, 3, 3 x 6)
     scale = np.array([1.0, 1, 1, 1 / length, 1 / length, 1 / length])
     frame, weights = _frame(unit[:, [0, 5]][..., _SPEAR] * scale)
@@ -191,10 +183,10 @@ def _curve(coef: np.ndarray, weights: np.ndarray, u: np.ndarray) -> np.ndarray:
     ``(s, c)`` the sine and cosine of ``pi (u - 1/2)``: no overflow, ``c = 0`` (t = inf) gives
     the leading coefficient, and near t = 0 and t = inf the small terms stay small.
     """
-    theta = np.pi * (u - 0.5)
+    theta = np.pi * (u[:, None] - 0.5)  # (L, 1, T)
     s, c = np.sin(theta), np.cos(theta)
     s2, c2, sc = s * s, c * c, s * c
-    basis = np.stack([c2 * c2, sc * c2, s2 * c2, sc * s2, s2 * s2], axis=1)  # (L, 5, T)
+    basis = np.concatenate([c2 * c2, sc * c2, s2 * c2, sc * s2, s2 * s2], axis=1)  # (L, 5, T)
     out = np.empty(u.shape)
     nl, nt = u.shape
     ls, ts = max(1, _CHUNK // nt), min(nt, _CHUNK)  # loops and parameters per chunk
@@ -213,7 +205,7 @@ def singularity_curve(joint_factors: np.ndarray, t: np.ndarray,
     ``length``."""
     jf = _check_factors(joint_factors, length)
     t = np.asarray(t, dtype=np.float64)
-    if t.ndim < 1 or np.any(np.isnan(t)):
+    if t.ndim < 1 or np.isnan(t).any():
         raise ValueError(f"t must be an array (T,) or (..., T) without NaN, got {t.shape}")
     shape = np.broadcast_shapes(jf.shape[:-2], t.shape[:-1])
     jf = np.broadcast_to(jf, shape + (6, 8)).reshape(-1, 6, 8)
@@ -227,7 +219,7 @@ def _cycle_samples(jf: np.ndarray, per_factor: int) -> np.ndarray:
     ``(t - h0)^2 + r^2``)
     the t where its rotation angle is uniform, ``t = h0 + r cot(pi (j + 1/2) / k)``, and
     ``u = 0`` (t = inf). Fast parts of the cycle (small r) get their share of samples."""
-    t = poly.cycle_parameters(jf[..., :3, 0], np.sqrt(np.sum(jf[..., :3, 1:4] ** 2, -1)),
+    t = poly.cycle_parameters(jf[..., :3, 0], np.sqrt((jf[..., :3, 1:4] ** 2).sum(-1)),
                               per_factor)  # sorted and finite, so u in (0, 1) is sorted too
     return np.concatenate([np.zeros(t.shape[:-1] + (1,)), poly.t_to_param(t)], axis=-1)
 
@@ -270,7 +262,7 @@ def singularity_min(joint_factors: np.ndarray, samples: int = 24, levels: int = 
     for _ in range(levels):
         gv = _curve(coef, weights, start[:, None] + step[:, None] * np.arange(_GRID))  # (B, 9)
         i = np.argmin(gv, axis=1)
-        v = np.min(gv, axis=1)
+        v = gv.min(axis=1)
         best_u = np.where(v < best_v, start + step * i, best_u)
         best_v = np.minimum(v, best_v)
         last_start, last_step = start, step

@@ -46,14 +46,17 @@ class FourPoseFamilies:
         return tuple((0, *(int(i) + 1 for i in np.argsort(tf))) for tf in self.t)
 
 
+_UPPER = np.triu(np.ones((4, 4), dtype=bool), 1)  # pose pairs i < j
+
+
 def _check_poses(poses: np.ndarray) -> np.ndarray:
     s = np.asarray(poses, dtype=np.float64)
     if s.shape != (4, 8):
         raise ValueError(f"four-pose interpolation needs poses of shape (4, 8), got {s.shape}")
-    if not np.all(np.isfinite(s)):
+    if not np.isfinite(s).all():
         raise ValueError("poses must be finite")
     # Primal parts are compared among themselves only: the dual part carries the length unit.
-    pn = np.linalg.norm(s[:, :4], axis=-1)
+    pn = np.sqrt((s[:, :4] ** 2).sum(-1))
     bad = np.flatnonzero(pn <= TOL.zero * pn.max())
     if bad.size:
         raise ValueError(f"pose {int(bad[0])} has a zero primal part (not a pose)")
@@ -62,7 +65,7 @@ def _check_poses(poses: np.ndarray) -> np.ndarray:
 
 def _polar(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     """Polar form of the Study quadric ``B(x, y) = x_P . y_D + x_D . y_P`` (broadcasting)."""
-    return np.sum(x[..., :4] * y[..., 4:] + x[..., 4:] * y[..., :4], axis=-1)
+    return (x[..., :4] * y[..., 4:] + x[..., 4:] * y[..., :4]).sum(axis=-1)
 
 
 def _rulings(p: np.ndarray) -> np.ndarray:
@@ -88,9 +91,9 @@ def _rulings(p: np.ndarray) -> np.ndarray:
             "four poses are complex (discriminant < 0); move one of the poses", "no-real")
     # v^T q v = 0 for v = sqrt|lam1| e0 +- sqrt|lam0| e1 (lam0 <= 0 <= lam1 up to tolerance).
     a, b = np.sqrt(np.abs(lam[1])), np.sqrt(np.abs(lam[0]))
-    v = np.stack([a * vec[:, 0] + b * vec[:, 1], a * vec[:, 0] - b * vec[:, 1]])
+    v = a * vec[:, 0] + np.array([[b], [-b]]) * vec[:, 1]  # (2, 2): the two signs
     c = v @ null.T
-    if np.any(np.abs(c[:, 0]) <= TOL.residual * np.abs(c).max(axis=-1)):
+    if (np.abs(c[:, 0]) <= TOL.residual * np.abs(c).max(axis=-1)).any():
         raise InterpolationError(
             "degenerate poses: a ruling through S_0 meets the plane of poses 1..3 in the "
             "hyperplane of zero scalar part, so no family is defined; perturb the poses", "rank")
@@ -107,31 +110,34 @@ def four_pose_families(poses: np.ndarray) -> FourPoseFamilies:
     rel = dq.normalize(dq.mul(dq.inv(s[0]), s))
     rel[0] = dq.IDENTITY
     # Scale lengths to O(1) for the rank and tolerance tests (c and t are scale invariant).
-    length = np.linalg.norm(rel[:, 4:], axis=-1).max()
-    scaled = rel * np.r_[np.ones(4), np.full(4, 1.0 / length if length > 0 else 1.0)]
-    for i in range(4):
-        for j in range(i + 1, 4):
-            d = min(np.abs(scaled[i] - scaled[j]).max(), np.abs(scaled[i] + scaled[j]).max())
-            if d <= TOL.residual:
-                raise InterpolationError(
-                    f"poses {i} and {j} coincide (within tolerance): four distinct poses are "
-                    "needed", "coincident")
+    length = np.sqrt((rel[:, 4:] ** 2).sum(-1)).max()
+    scaled = rel.copy()
+    scaled[:, 4:] *= 1.0 / length if length > 0 else 1.0
+    gap = np.minimum(np.abs(scaled[:, None] - scaled).max(-1),
+                     np.abs(scaled[:, None] + scaled).max(-1))  # (4, 4), same pose up to sign
+    close = (gap <= TOL.residual) & _UPPER
+    if close.any():
+        i, j = divmod(int(close.argmax()), 4)  # the first pair i < j, row-major
+        raise InterpolationError(
+            f"poses {i} and {j} coincide (within tolerance): four distinct poses are "
+            "needed", "coincident")
     sv = np.linalg.svd(scaled, compute_uv=False)
     if sv[-1] <= TOL.residual * sv[0]:
         raise InterpolationError(
             "degenerate poses: the four poses span less than a projective 3-space in the Study "
             "quadric (rank < 4), so no cubic interpolates them", "rank")
-    for i in range(1, 4):
-        # Pitch relative to the pose's own displacement (not to the largest one), so a pose
-        # that is merely close to S_0 is accepted: it is visited at a large |t|. Products of
-        # unit inputs carry round-off ~1e-16 |D|, so a ratio above TOL.zero_pitch is certain.
-        ratio = abs(scaled[i, 4]) / max(np.linalg.norm(scaled[i, 4:]), 1e-300)
-        if ratio <= TOL.zero_pitch:
-            raise InterpolationError(
-                f"pose {i} is reached from pose 0 by a rotation without pitch (translation "
-                f"along the axis / offset = {ratio:.1e} <= {TOL.zero_pitch:g}): within the "
-                "precision of the input it lies on a ruling through S_0 and cannot be visited; "
-                f"move pose {i} along its rotation axis by a small amount", "zero-pitch")
+    # Pitch relative to the pose's own displacement (not to the largest one), so a pose that
+    # is merely close to S_0 is accepted: it is visited at a large |t|. Products of unit inputs
+    # carry round-off ~1e-16 |D|, so a ratio above TOL.zero_pitch is certain.
+    ratio = np.abs(scaled[1:, 4]) / np.maximum(np.sqrt((scaled[1:, 4:] ** 2).sum(-1)), 1e-300)
+    flat = np.flatnonzero(ratio <= TOL.zero_pitch)
+    if len(flat):
+        i = int(flat[0]) + 1
+        raise InterpolationError(
+            f"pose {i} is reached from pose 0 by a rotation without pitch (translation "
+            f"along the axis / offset = {ratio[i - 1]:.1e} <= {TOL.zero_pitch:g}): within the "
+            "precision of the input it lies on a ruling through S_0 and cannot be visited; "
+            f"move pose {i} along its rotation axis by a small amount", "zero-pitch")
     c = _rulings(scaled)
     k = c @ rel
     t = _polar((c @ scaled)[:, None, :], scaled[None, 1:]) / scaled[1:, 4]
@@ -157,7 +163,7 @@ def bad_mu_mask(fams: FourPoseFamilies, family: int, mus: np.ndarray) -> np.ndar
     f = _family(fams, family)
     bad = np.r_[fams.c[f, 0], fams.t[f]]
     mus = np.asarray(mus, dtype=np.float64)
-    return np.any(np.abs(mus[..., None] - bad) <= TOL.residual * (1.0 + np.abs(bad)), axis=-1)
+    return (np.abs(mus[..., None] - bad) <= TOL.residual * (1.0 + np.abs(bad))).any(axis=-1)
 
 
 def four_pose_motion_batch(fams: FourPoseFamilies, family: int, mus: np.ndarray) -> np.ndarray:
@@ -165,10 +171,10 @@ def four_pose_motion_batch(fams: FourPoseFamilies, family: int, mus: np.ndarray)
     (``inf`` allowed). Raises :class:`InterpolationError` (``bad-mu``) if any mu is excluded."""
     f = _family(fams, family)
     mus = np.asarray(mus, dtype=np.float64)
-    if mus.ndim != 1 or np.any(np.isnan(mus)):
+    if mus.ndim != 1 or np.isnan(mus).any():
         raise ValueError(f"mus must be a 1-D array without NaN, got shape {mus.shape}")
     bad = bad_mu_mask(fams, f, mus)
-    if np.any(bad):
+    if bad.any():
         mu = float(mus[np.argmax(bad)])
         raise InterpolationError(
             f"mu = {mu:.9g} is excluded: it equals c_0 = 1 or a visiting parameter t_i "
@@ -178,9 +184,12 @@ def four_pose_motion_batch(fams: FourPoseFamilies, family: int, mus: np.ndarray)
     inf = np.isinf(mus)
     mf = np.where(inf, 0.0, mus)[:, None]
     w = c[1:] * np.where(inf[:, None], 1.0, (mf - t) / (mf - c[0]))  # (M, 3)
-    pp = np.polynomial.polynomial
-    full = pp.polyfromroots(t)  # prod_j (t - t_j), ascending, monic
-    others = np.stack([np.r_[pp.polyfromroots(np.delete(t, i)), 0.0] for i in range(3)])
+    # prod_j (t - t_j) and the products leaving out one root, ascending and monic, written out
+    # from the three roots (a numpy.polynomial call per product costs more than the cubic)
+    t0, t1, t2 = t.tolist()
+    full = np.array([-t0 * t1 * t2, t0 * t1 + t0 * t2 + t1 * t2, -(t0 + t1 + t2), 1.0])
+    others = np.array([[t1 * t2, -(t1 + t2), 1.0, 0.0], [t0 * t2, -(t0 + t2), 1.0, 0.0],
+                       [t0 * t1, -(t0 + t1), 1.0, 0.0]])
     return full[:, None] * dq.IDENTITY - np.einsum("mi,ik,il->mkl", w, others, p)
 
 
