@@ -116,8 +116,8 @@ def test_too_small_size_says_what_to_do():
 def _lean_points(lean_lower: bool) -> np.ndarray:
     """A polyline whose joint 0 pin runs from E_0 = (0,0,0) to S_1 = (0,0,10) (mm): link 1's
     bar leans back from S_1 over the pin, link 0's bar leans away or (``lean_lower``) over it."""
-    s0 = [0.0, -30.0, 8.0] if lean_lower else [0.0, -30.0, -20.0]
-    return np.array([s0, [0, 0, 0], [0, 0, 10], [6, 0, 0], [60, 0, 2], [60, 30, 2],
+    s0 = [0.0, -30.0, 16.0] if lean_lower else [0.0, -30.0, -20.0]
+    return np.array([s0, [0, 0, 0], [0, 0, 10], [7, 0, 0], [60, 0, 2], [60, 30, 2],
                      [60, 60, 2], [30, 60, 2], [0, 60, 2], [-30, 60, 2], [-30, 30, 2],
                      [-30, 0, 2]], float)
 
@@ -131,17 +131,29 @@ def test_split_moves_away_from_a_bar_that_leans_back():
     one = parts.joint_zones(jf, _lean_points(False), SPEC)[0]
     assert one.notch == (0.0, 0.0) and one.split < 5.0 - 1.0  # towards E_0, off the middle
     # link 1's bar material within the zone cut's radius stays above the split (sampled)
-    d = np.array([6.0, 0.0, -10.0]) / np.linalg.norm([6.0, 0.0, -10.0])
-    lam = np.linspace(0.0, 11.0, 4001)[:, None]
+    d = np.array([7.0, 0.0, -10.0]) / np.linalg.norm([7.0, 0.0, -10.0])
+    lam = np.linspace(0.0, 12.2, 4001)[:, None]
     phi = np.linspace(0.0, 2.0 * np.pi, 73)[:, None]
     disc = np.cos(phi) * [0.0, 1.0, 0.0] + np.sin(phi) * np.cross(d, [0.0, 1.0, 0.0])
     surface = (np.array([0, 0, 10.0]) + lam * d)[:, None] + SPEC.rho_mm * disc[None]
-    near = np.hypot(surface[..., 0], surface[..., 1]) < one.radius + one.eps
+    near = np.hypot(surface[..., 0], surface[..., 1]) < one.radius + one.gap + one.eps
     assert near.any()
     assert surface[..., 2][near].min() >= one.split + one.gap / 2 + one.eps - 1e-9
     both = parts.joint_zones(jf, _lean_points(True), SPEC)[0]
     assert both.notch[0] > 0 and both.notch[1] > 0  # no split clears both: the middle of it
     assert both.notch[0] == pytest.approx(both.notch[1])
+
+
+def test_notched_bars_keep_the_clearance():
+    """Both bars lean over the pin, so the zone notches them: what is left of each keeps the
+    clearance c from the neighbour's boss and its end face (it kept only the zone margin eps,
+    0.018 mm on random design 0, before)."""
+    spec = parts.PartSpec(size_mm=90.0, rho_mm=1.0, boss_radius_mm=3.3, pin_radius_mm=1.0)
+    asm = parts.build_assembly(example_loop()[0], _lean_points(True), 1.0, spec)
+    assert min(asm.zones[0].notch) > 0
+    poly_err = 3.7 * (1.0 - np.cos(np.pi / asm.spec.segments))
+    gap = asm.parts[0].manifold.min_gap(asm.parts[1].manifold, 2.0)
+    assert gap >= asm.spec.clearance_mm - 2 * poly_err
 
 
 @pytest.mark.parametrize("lean_lower", [False, True])

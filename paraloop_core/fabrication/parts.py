@@ -204,8 +204,9 @@ def _split(length: float, lower: np.ndarray, upper: np.ndarray, w: np.ndarray, s
     """Split ``m`` of a joint (module docstring) and the notches left: ``lower`` is link i's
     bar from ``E_i`` (vector, mm), ``upper`` link i+1's bar from ``S_{i+1}``. A bar of radius
     rho leaving the axis at axial slope ``a`` and radial slope ``r`` has material within the
-    zone cut's radius ``R + eps`` only up to the axial reach ``a (R + eps + rho) / r + rho``
-    (at most its length), which must stay on its own side of the split."""
+    zone cut's radius ``R + c + eps`` only up to the axial reach
+    ``a (R + c + eps + rho) / r + rho`` (at most its length), which must stay on its own side
+    of the split."""
     c, b, rho = spec.clearance_mm, spec.boss_length_mm, spec.rho_mm
 
     def reach(bar: np.ndarray, toward: np.ndarray) -> float:
@@ -214,7 +215,7 @@ def _split(length: float, lower: np.ndarray, upper: np.ndarray, w: np.ndarray, s
         if a <= 0.0:
             return rho  # leans away: only the bar's rounded end
         r = np.sqrt(max(1.0 - a * a, 0.0))
-        return a * min(n, (spec.boss_radius_mm + eps + rho) / max(r, 1e-12)) + rho
+        return a * min(n, (spec.boss_radius_mm + c + eps + rho) / max(r, 1e-12)) + rho
 
     floor, ceil = c / 2 - b + 4 * eps, length + b - c / 2 - 4 * eps  # bosses >= 4 eps long
     if floor > ceil:
@@ -356,16 +357,17 @@ def _check_manifold(man: m3d.Manifold, name: str) -> None:
 
 def zone_cut(z: Zone, upper: bool, segments: int) -> m3d.Manifold:
     """What a body loses at a joint: radius ``R - eps`` along its own boss (the boss, radius
-    R, overlaps the rest: no coincident faces, no slits) and ``R + eps`` towards the neighbour
-    (nothing of it is left near the neighbour's hardware, nor near a print-in-place head)."""
+    R, overlaps the rest: no coincident faces, no slits) and ``R + c + eps`` towards the
+    neighbour, on to ``c + eps`` past the zone's far end: what is left there (a bar that leans
+    over the joint) keeps the clearance c from the neighbour's boss and its end face."""
     e, r, mid, c = z.eps, z.radius, z.split, z.gap
     end = z.length - z.s0  # far end of the upper boss
     if upper:
-        cuts = [(z.s0 - e, mid + c / 2 + e, r + e)]
+        cuts = [(z.s0 - c - e, mid + c / 2 + e, r + c + e)]
         cuts += [(mid + c / 2 + e, end - e, r - e), (end - e, z.s1 + c + e, r + c + e)] \
             if z.s1 > end else [(mid + c / 2 + e, end - e, r - e)]
     else:
-        cuts = [(z.s0 + e, mid - c / 2 - e, r - e), (mid - c / 2 - e, z.s1 + e, r + e)]
+        cuts = [(z.s0 + e, mid - c / 2 - e, r - e), (mid - c / 2 - e, z.s1 + c + e, r + c + e)]
     return m3d.Manifold.batch_boolean([cylinder(z.at(a), z.at(b), rad, segments)
                                        for a, b, rad in cuts], m3d.OpType.Add)
 
