@@ -190,3 +190,19 @@ def test_carved_parts_export_and_verify():
     bare = example_assembly(False)
     assert sum(p["volume_mm3"] for p in ver["parts"]) > sum(
         p.manifold.volume() for p in bare.parts)
+
+
+def test_long_part_lies_diagonally_on_the_bed():
+    """A 300 mm bar does not fit a 250 x 210 bed square-on: the layout turns it onto the
+    diagonal (still flat, inside the bed), as sizing.fits_bed promised."""
+    from paraloop_core.fabrication import guide, sizing
+
+    bar = trimesh.creation.box([300.0, 12.0, 8.0])
+    bar.apply_transform(trimesh.transformations.rotation_matrix(0.3, [0.2, 0.5, 1.0]))
+    bed = (250.0, 210.0, 210.0)
+    assert sizing.fits_bed(np.array([[300.0, 12.0, 8.0]]), sizing.Printer("t", bed))[0]
+    (place,) = guide.bed_layout({"bar": bar}, bed)
+    laid = bar.copy().apply_transform(place.transform)
+    assert np.allclose(laid.bounds[0, 2], 0.0, atol=1e-6)
+    assert laid.extents[2] == pytest.approx(8.0, abs=1e-3)
+    assert np.all(laid.bounds[0] >= -1e-6) and np.all(laid.bounds[1] <= np.array(bed) + 1e-6)

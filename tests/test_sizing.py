@@ -64,8 +64,13 @@ def test_limits_by_pair_type():
 
 
 def test_bed_fit_in_any_orientation():
-    fit = sizing.fits_bed(np.array([[200.0, 240.0, 10.0], [260.0, 1.0, 1.0]]), GENERIC)
-    assert fit.tolist() == [True, False]
+    ext = np.array([[200.0, 240.0, 10.0], [260.0, 1.0, 1.0], [330.0, 1.0, 1.0],
+                    [260.0, 220.0, 220.0], [300.0, 14.0, 11.0]])
+    # a long thin bar lies diagonally on the 250 x 210 bed (diagonal 326 mm)
+    assert sizing.fits_bed(ext, GENERIC).tolist() == [True, True, False, False, True]
+    f = sizing.fit_factor(ext[1:2], GENERIC)[0]
+    assert sizing.fits_bed(ext[1:2] * f * 0.999, GENERIC)[0]
+    assert not sizing.fits_bed(ext[1:2] * f * 1.01, GENERIC)[0]
 
 
 def test_plain_export_sizes_for_the_printer(tmp_path):

@@ -6,10 +6,11 @@
   chosen orientation has the lowest height among those with at least :data:`MIN_CONTACT_MM2`
   of contact (else the largest contact); parts with little contact are flagged for a brim.
   Overhangs (round bars, bosses) need supports: the guide says so, it does not plan them.
-* **Bed layout** (:func:`bed_layout`): footprints turned to their smallest 2D bounding box,
-  placed in rows (largest first) with :data:`GAP_MM` between them, a new plate when the bed is
-  full. Print-in-place parts are captured by their pin heads, so they are one print: the
-  assembly in its home pose, standing on its lowest point.
+* **Bed layout** (:func:`bed_layout`): footprints turned to their smallest 2D bounding box
+  (and on, diagonally, where that box does not fit the bed square-on), placed in rows
+  (largest first) with :data:`GAP_MM` between them, a new plate when the bed is full.
+  Print-in-place parts are captured by their pin heads, so they are one print: the assembly in
+  its home pose, standing on its lowest point.
 * **Guide** (:func:`guide_files`): ``assembly.md`` (part list with dimensions, which pin goes
   into which bore, order of assembly, print orientation, settings) with one picture per step
   (``assembly_step_<k>.png``: the links' centre lines, new link in colour), and the plates as
@@ -24,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 import trimesh
 
+from paraloop_core.fabrication import sizing
 from paraloop_core.fabrication.parts import Assembly
 
 #: A face counts as touching the bed within this height (mm).
@@ -87,6 +89,11 @@ def bed_layout(meshes: dict[str, trimesh.Trimesh], bed_mm: tuple[float, float, f
         turn[:2, :2], turn[:2, 3] = to_box[:2, :2], to_box[:2, 2]
         m = turn @ rot
         box = trimesh.transform_points(mesh.vertices, m)
+        room = np.asarray(bed_mm[:2], float) - 2 * GAP_MM
+        if np.any(np.ptp(box[:, :2], axis=0) > room):  # turned (diagonal) if that fits
+            _, angle = sizing.footprint_turn(np.ptp(box[:, :2], axis=0), room)
+            m = trimesh.transformations.rotation_matrix(float(angle), [0, 0, 1]) @ m
+            box = trimesh.transform_points(mesh.vertices, m)
         m = trimesh.transformations.translation_matrix(-box.min(axis=0)) @ m
         laid[name] = (m, np.ptp(box, axis=0), height, contact)
     out, plate, x, y, row = [], 0, GAP_MM, GAP_MM, 0.0

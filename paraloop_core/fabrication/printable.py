@@ -132,7 +132,7 @@ def export_printable(realization: Realization, *,
             continue
         if fit.all() or not auto:
             break
-        smaller = sz.size_mm * min(float(np.min(np.sort(printer.bed_mm) / extents[~fit])), 0.99)
+        smaller = sz.size_mm * min(float(sizing.fit_factor(extents[~fit], printer).min()), 0.99)
         if smaller < sz.min_size_mm:
             raise FabricationError(
                 f"no size fits printer {printer.name!r} (bed {_bed(printer)} mm): the "
