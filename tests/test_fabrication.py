@@ -90,6 +90,34 @@ def test_verification_refines_fast_cells():
     assert ver["max_pair_samples"] > 16
 
 
+def test_verification_without_a_speed_bound(monkeypatch):
+    """Where a motion passes too close to a singular pose for a speed bound (random design 16,
+    links 1 and 4), the joint-angle bound alone certifies the cycle; it is sound: at least the
+    largest sampled displacement."""
+    from paraloop_core.realization import motion_bound as mbm
+
+    jf, pts, radius = example_loop()
+    u = (np.arange(64) + 0.5) / 64
+    center = pts[4]
+    chain = mbm.sound_displacement_bounds(jf, 0, 2, center, 0.3, u, None)
+    assert np.array_equal(chain, mbm.chain_displacement_bounds(jf, 0, 2, center, 0.3, u))
+    fine = np.linspace(0.0, 1.0, 64 * 64, endpoint=False)
+    c = loops.relative_motion(jf, 0, 2)
+    x = dq.transform_points(poly.evaluate(c, poly.param_to_t(fine)), center)
+    x0 = dq.transform_points(poly.evaluate(c, poly.param_to_t(u)), center)
+    near = np.abs(((fine[:, None] - u[None] + 0.5) % 1.0) - 0.5).argmin(axis=1)
+    moved = np.linalg.norm(x - x0[near], axis=-1)
+    assert moved.max() > 0.1 * chain.max() and np.all(moved <= chain[near] + 1e-12)
+
+    def refuse(*args, **kwargs):
+        raise FabricationError("too close to a singular pose", "bad-parameters")
+
+    monkeypatch.setattr(mbm, "motion_bound", refuse)
+    assert mbm.try_motion_bound(jf, 0, 2, center) is None
+    ver = export.verify_assembly(example_assembly(False), samples=64)
+    assert ver["ok"] and ver["continuous_min_gap_mm"] > 0
+
+
 def test_export_design_parts_and_progress():
     jf, pts, radius = example_loop()
     seen = []

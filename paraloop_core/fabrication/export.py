@@ -20,8 +20,8 @@ spaced parameters ``u_k = k / samples`` the moving part is placed by the relativ
   sample minus a displacement bound (points of the moving part within its bounding sphere,
   mm): the smaller of :func:`motion_bound.displacement_bounds` (speed) and
   :func:`motion_bound.chain_displacement_bounds` (joint angles; finite near a singular
-  pose). ``continuous_min_gap_mm > 0`` for every pair certifies the parts collision-free
-  over the whole continuous cycle.
+  pose, alone where no speed bound exists). ``continuous_min_gap_mm > 0`` for every pair
+  certifies the parts collision-free over the whole continuous cycle.
 """
 
 from __future__ import annotations
@@ -51,11 +51,7 @@ from paraloop_core.fabrication.parts import (
 )
 from paraloop_core.linkage import loops
 from paraloop_core.realization.clearance import segment_distance
-from paraloop_core.realization.motion_bound import (
-    chain_displacement_bounds,
-    displacement_bounds,
-    motion_bound,
-)
+from paraloop_core.realization.motion_bound import sound_displacement_bounds, try_motion_bound
 
 if TYPE_CHECKING:
     from paraloop_core.realization.ee_certificate import EndEffectorRealization
@@ -131,14 +127,12 @@ def _subsamples(u: np.ndarray, idx: np.ndarray, counts: np.ndarray) -> np.ndarra
     return np.unique((lo + (hi - lo) * (k + 0.5) / np.repeat(n, n)) % 1.0)
 
 
-def _step_motion(asm: Assembly, a: int, b: int, bound, reach: float,
+def _step_motion(asm: Assembly, a: int, b: int, center: np.ndarray, bound, reach: float,
                  u: np.ndarray) -> np.ndarray:
-    """How far (mm) part b's points within ``reach`` of ``bound.center`` move, relative to
-    part a, about each sample ``u``: the smaller of two sound bounds (speed bound, joint
-    angles: the latter stays finite near a singular pose)."""
-    r, c = reach / asm.scale, bound.center
-    return asm.scale * np.minimum(displacement_bounds(bound, r, u),
-                                  chain_displacement_bounds(asm.joint_factors, a, b, c, r, u))
+    """How far (mm) part b's points within ``reach`` of ``center`` (design units) move,
+    relative to part a, about each sample ``u`` (:func:`sound_displacement_bounds`)."""
+    return asm.scale * sound_displacement_bounds(asm.joint_factors, a, b, center,
+                                                 reach / asm.scale, u, bound)
 
 
 def verify_assembly(asm: Assembly, samples: int = 720, search_mm: float | None = None,
@@ -190,12 +184,12 @@ def verify_assembly(asm: Assembly, samples: int = 720, search_mm: float | None =
         ends = pb.capsules.reshape(-1, 3)
         center = 0.5 * (ends.min(0) + ends.max(0))
         reach = float(np.max(np.linalg.norm(ends - center, axis=1)) + pb.radii.max())
-        bound = motion_bound(asm.joint_factors, a, b, center / asm.scale)
+        bound = try_motion_bound(asm.joint_factors, a, b, center / asm.scale)
 
         gap, vol, n_exact = _pair_gaps(asm, a, b, ma, mb, caps, u0, search)
         u = u0
         for _ in range(4):  # refine cells whose motion bound exceeds their gap
-            delta = _step_motion(asm, a, b, bound, reach, u)
+            delta = _step_motion(asm, a, b, center / asm.scale, bound, reach, u)
             bad = np.nonzero((gap - delta <= 0) & (gap > 0))[0]
             if not len(bad) or np.any(vol > 1e-9):  # certified, or a collision anyway
                 break
@@ -208,7 +202,7 @@ def verify_assembly(asm: Assembly, samples: int = 720, search_mm: float | None =
             u = np.concatenate([u, new])[order]
             gap, vol = np.concatenate([gap, g_new])[order], np.concatenate([vol, v_new])[order]
         else:  # all rounds refined: the bound of the final samples
-            delta = _step_motion(asm, a, b, bound, reach, u)
+            delta = _step_motion(asm, a, b, center / asm.scale, bound, reach, u)
         i_min = int(np.argmin(gap))
         pairs_out.append({
             "links": [a, b], "adjacent": joint is not None,

@@ -25,7 +25,7 @@ from paraloop_core.algebra import dq, poly
 from paraloop_core.errors import FabricationError
 from paraloop_core.linkage import loops
 from paraloop_core.realization.clearance import segment_distance
-from paraloop_core.realization.motion_bound import displacement_bounds, motion_bound
+from paraloop_core.realization.motion_bound import sound_displacement_bounds, try_motion_bound
 
 
 @dataclass(frozen=True)
@@ -95,7 +95,8 @@ def _column_gaps(jf: np.ndarray, caps: list, top: np.ndarray, bottom: np.ndarray
         gap = dist.min(axis=1)
         center = 0.5 * (seg.reshape(-1, 3).min(0) + seg.reshape(-1, 3).max(0))
         reach = float(np.max(np.linalg.norm(seg.reshape(-1, 3) - center, axis=1)))
-        delta = displacement_bounds(motion_bound(jf, link, j, center), reach, u)
+        delta = sound_displacement_bounds(jf, link, j, center, reach, u,
+                                          try_motion_bound(jf, link, j, center))
         best_c = min(best_c, float(np.min(gap - delta)))
         best_s = min(best_s, float(gap.min()))
     return best_c, best_s
@@ -178,6 +179,7 @@ def _ground_below(jf: np.ndarray, caps: list, link: int, u: np.ndarray,
         if j != link:
             center = 0.5 * (ends.min(0) + ends.max(0))
             reach = float(np.max(np.linalg.norm(ends - center, axis=1)))
-            step = float(displacement_bounds(motion_bound(jf, link, j, center), reach, u).max())
+            step = float(sound_displacement_bounds(jf, link, j, center, reach, u,
+                                                   try_motion_bound(jf, link, j, center)).max())
         lowest = min(lowest, float(z.min()) - step)
     return lowest

@@ -244,3 +244,23 @@ def chain_sweep(centre: np.ndarray, ends: list[np.ndarray], axes: np.ndarray,
         move += chord[m][:, None] * (rho + radius)
         y = dq.transform_points(centre[m][:, None, :], y)
     return move, y
+
+
+def try_motion_bound(joint_factors: np.ndarray, i: int, j: int,
+                     center: np.ndarray) -> MotionBound | None:
+    """:func:`motion_bound`, or None where the motion passes too close to a singular pose for
+    a speed bound (:func:`sound_displacement_bounds` then uses the joint angles alone)."""
+    try:
+        return motion_bound(joint_factors, i, j, center)
+    except FabricationError:
+        return None
+
+
+def sound_displacement_bounds(joint_factors: np.ndarray, a: int, b: int, center: np.ndarray,
+                              radius: float, u: np.ndarray, bound: MotionBound | None
+                              ) -> np.ndarray:
+    """``(T,)``: the smaller of :func:`displacement_bounds` (speed ``bound`` of
+    :func:`try_motion_bound`) and :func:`chain_displacement_bounds` (joint angles, finite near
+    a singular pose; alone where ``bound`` is None). Design units."""
+    chain = chain_displacement_bounds(joint_factors, a, b, center, radius, u)
+    return chain if bound is None else np.minimum(displacement_bounds(bound, radius, u), chain)
