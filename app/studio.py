@@ -36,6 +36,7 @@ from paraloop_core import pipeline
 from paraloop_core.algebra import dq, poly
 from paraloop_core.design import Design, Pose
 from paraloop_core.errors import DesignFileError, ParaloopError, RealizationError
+from paraloop_core.realization import radii
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "assets" / "designs"
 CACHE_SIZE = 16
@@ -273,8 +274,10 @@ def realization_note(sol: pipeline.Solution) -> str:
     real = sol.realization
     if real is None:
         return "" if sol.design.realization.enabled else "Realization: off."
+    rad = radii.certified_radii(real.pairs, real.pair_lower, real.radius)
     return (f"Realized loop {sol.design.loop}: bar radius {real.radius:.3g}, "
-            f"min clearance {real.min_clearance:.3g}.")
+            f"min clearance {real.min_clearance:.3g}; certified thickest: every bar and pin "
+            f"{rad.uniform:.3g}, per bar " + ", ".join(f"{r:.3g}" for r in rad.per_bar) + ".")
 
 
 def restore_autosave(studio: Studio, design_path: Path | None) -> str | None:

@@ -59,6 +59,30 @@ def test_referee_reads_tv8_consistently():
     assert rep["disagreements"] == []
 
 
+@pytest.mark.parametrize("source", ["tv8", 11])
+def test_certified_radii_against_the_referee(source):
+    """The reported radii (uniform and per bar, pins at rho) keep every certified pair apart
+    by the referee's dense minima: capsules of the reported radii never meet over the cycle;
+    the per-bar radii are at least the uniform bar radius with the pins at rho."""
+    design = pl.load_design(f"assets/designs/{source}.json") if isinstance(source, str) \
+        else pl.design_from_dict(random_design(source, 1.0))
+    result = pl.result_to_dict(pl.solve(design))
+    real = result["realization"]
+    rad = real["certified_radii"]
+    rep = check_result(result)
+    assert rep["status"] == "checked"
+    rho = rad["pin_radius"]
+    for row in rep["pairs"]:
+        if "reported" not in row:  # consecutive bars: separated by the joint hardware
+            continue
+        e1, e2 = row["edges"]
+        per = [rad["per_bar_max"][e // 2] if e % 2 == 0 else rho for e in (e1, e2)]
+        assert per[0] + per[1] <= row["dense_min"] + rep["tol"]
+        assert 2 * rad["uniform_max"] <= row["dense_min"] + rep["tol"]
+    assert min(rad["per_bar_max"]) >= rad["uniform_max"] * (1 - 1e-9)
+    assert rad["uniform_max"] >= real["radius"] * (1 - 1e-9)
+
+
 @pytest.mark.parametrize(("seeds", "scale"), [(range(3), 1.0), (range(3, 4), 1e-6),
                                               (range(4, 5), 1e8)])
 def test_certificate_dense_default(seeds: range, scale: float):

@@ -92,6 +92,8 @@ def test_startup_draws_everything(studio):
     assert labels[0].startswith("S0 #1") and sorted(s.split()[1] for s in labels) == \
         ["#1", "#2", "#3", "#4"]
     assert "S=" in studio.panels.loop.options[0] and "ok" in studio.panels.status.content
+    if sol.realization is not None:  # the certified radii (docs/result-format.md)
+        assert "certified thickest: every bar and pin" in studio.panels.status.content
     x = studio.plots.angles.data[0]
     assert x.shape == (241,) and np.allclose(np.diff(x), 360 / 242)  # uniform driving angle
 

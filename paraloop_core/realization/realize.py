@@ -18,7 +18,7 @@ import numpy as np
 from paraloop_core.algebra import dq
 from paraloop_core.errors import RealizationError
 from paraloop_core.linkage import loops
-from paraloop_core.realization import verify
+from paraloop_core.realization import radii, verify
 from paraloop_core.realization.collision import colliding_polylines
 from paraloop_core.realization.offsetting import (
     DIGITS,
@@ -176,6 +176,8 @@ def realization_to_dict(r: Realization) -> dict:
                         for (e1, e2, _, _), lo in zip(r.joint_pairs, r.joint_lower,
                                                        strict=True)],
         "design_space_radii": r.design_space_radii.tolist(),
+        "certified_radii": radii.radii_to_dict(radii.certified_radii(r.pairs, r.pair_lower,
+                                                                     r.radius)),
         "stats": {key: (float(v) if key == "length_ratio" else int(v))
                   for key, v in r.stats.items()},
         "offsets": [int(o) for o in r.offsets],
