@@ -3,8 +3,9 @@
 Run: ``.venv/bin/python benchmarks/printability.py [--n 100] [--workers 2]``. Each design is
 solved and exported exactly as ``paraloop export DESIGN --out DIR`` does without flags
 (generic printer profile); prints per design the outcome, the chosen size, the thinnest wall
-(bar diameter), the largest part, the smallest verified gap and the time, then the share
-exported, exported and verified, and printable (no gap under half the clearance).
+(5th percentile of the local thickness over all parts), the largest part, the smallest verified
+gap and the time, then the share exported, exported and verified, printable (no gap under half
+the clearance), and meeting the walls and the bed.
 """
 
 from __future__ import annotations
@@ -39,14 +40,17 @@ def run_one(item: tuple[str, object]) -> dict:
         real = sol.realization
         if real is None:
             return {**row, "outcome": "not realized", "time": time.perf_counter() - t0}
-        res = printable.export_printable(real, effector=sol.end_effector,
-                                         fixed=dict(design.realization.fixed))
+        res = printable.export_printable(
+            real, effector=sol.end_effector, fixed=dict(design.realization.fixed),
+            alternatives={i: lp.joint_factors for i, lp in enumerate(sol.loops)
+                          if i != design.loop})
     except ValueError as exc:  # the CLI's refusals (FabricationError etc.)
         return {**row, "outcome": f"refused: {' '.join(str(exc).split()[:12])}",
                 "time": time.perf_counter() - t0}
     ver, sz = res.report["verification"], res.report["sizing"]
     return {**row, "outcome": "ok" if ver["ok"] else "unverified", "printable": ver["printable"],
-            "size_mm": sz["size_mm"], "wall_mm": 2 * sz["bar_radius_mm"],
+            "size_mm": sz["size_mm"], "wall_mm": res.report["walls"]["p5_mm"],
+            "walls_ok": res.report["walls"]["ok"], "fits": all(sz["fits_bed"]),
             "largest_mm": float(np.max(printable.part_extents(res))),
             "min_gap_mm": ver["min_gap_mm"], "roomier": sz["realization"],
             "time": time.perf_counter() - t0}
@@ -64,7 +68,7 @@ def main(argv: list[str] | None = None) -> None:
     for row in (pool.imap(run_one, items) if pool else map(run_one, items)):
         rows.append(row)
         extra = "" if "size_mm" not in row else (
-            f" size {row['size_mm']:.0f} mm, wall {row['wall_mm']:.2f} mm, largest part "
+            f" size {row['size_mm']:.0f} mm, wall p5 {row['wall_mm']:.2f} mm, largest part "
             f"{row['largest_mm']:.0f} mm, min gap {row['min_gap_mm']:.3f} mm"
             + (f"; {row['roomier']}" if row.get("roomier") else ""))
         print(f"{row['design']:>16}: {row['outcome']}{extra} ({row['time']:.1f} s)", flush=True)
@@ -75,7 +79,8 @@ def main(argv: list[str] | None = None) -> None:
     print(f"\n{len(rows)} designs, {len(realized)} realized: exported {len(done)} "
           f"({100 * len(done) / max(len(realized), 1):.1f} %), verified "
           f"{sum(r['outcome'] == 'ok' for r in done)}, printable "
-          f"{sum(bool(r.get('printable')) for r in done)}; export time median "
+          f"{sum(bool(r.get('printable')) for r in done)}, walls and bed fit met "
+          f"{sum(bool(r.get('walls_ok') and r.get('fits')) for r in done)}; export time median "
           f"{np.median([r['time'] for r in realized]):.1f} s")
 
 

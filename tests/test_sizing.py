@@ -10,7 +10,7 @@ import pytest
 from paraloop_core.errors import FabricationError
 from paraloop_core.fabrication import sizing
 
-LIM = sizing.Limits(bar_bar=0.02, bar_pin=0.03, pin_pin=0.1, extent=1.0)
+LIM = sizing.Limits(bar_bar=0.02, bar_pin=0.03, pin_pin=0.1, extent=1.0, pin_length=0.1)
 GENERIC = sizing.PRINTERS["generic"]
 
 
@@ -85,6 +85,8 @@ def test_plain_export_sizes_for_the_printer(tmp_path):
     assert sz["chosen"] == "auto" and all(sz["fits_bed"])
     assert sz["size_mm"] >= sz["min_size_mm"] and sz["pin_radius_mm"] >= 1.0
     assert sz["boss_radius_mm"] >= sz["pin_radius_mm"] + 0.3 + 2.0 - 1e-9
+    walls = report["walls"]  # bars, bore walls and each boss's axial thickness
+    assert walls["ok"] and walls["p5_mm"] >= 0.99 * 2.0
 
 
 def test_roomier_realization_when_the_bed_is_too_small():
@@ -96,11 +98,32 @@ def test_roomier_realization_when_the_bed_is_too_small():
 
     jf, _, _ = example_loop()
     real = realize.realize(jf)
-    need = printable.min_size_mm(real, GENERIC)
-    roomy_bed = sizing.Printer("roomy", (need * 2,) * 3)
+    _, fit = printable.predicted_fit(real, GENERIC)
+    roomy_bed = sizing.Printer("roomy", tuple(b * 2 / fit for b in GENERIC.bed_mm))
     assert printable.roomier(real, roomy_bed) == (real, None)
-    small = sizing.Printer("small", (need * 0.8,) * 3)
+    small = sizing.Printer("small", tuple(b * 0.8 / fit for b in GENERIC.bed_mm))
+    assert printable.predicted_fit(real, small)[1] == pytest.approx(0.8)
     new, note = printable.roomier(real, small)
     assert new is not real and "realized again" in note  # this loop has room to spare
-    assert printable.min_size_mm(new, small) <= max(small.bed_mm) < need
+    assert printable.predicted_fit(new, small)[1] >= printable.FIT_MARGIN
     assert new.certified_clearance >= 2 * new.radius and new.radius > real.radius
+
+
+def test_roomier_tries_the_design_s_other_loops():
+    """Random design 11: its own loop, even with d and rho x2 .. x8, is predicted not to fit
+    the generic bed; another of its nine loops does, and is certified like the first."""
+    import paraloop_core as pl
+    from independent.generic_designs import random_design
+    from paraloop_core.fabrication import printable
+
+    design = pl.design_from_dict(random_design(11, 1.0))
+    sol = pl.solve(design)
+    others = {i: lp.joint_factors for i, lp in enumerate(sol.loops) if i != design.loop}
+    fixed = dict(design.realization.fixed)
+    assert printable.predicted_fit(sol.realization, GENERIC)[1] < printable.FIT_MARGIN
+    assert printable.roomier(sol.realization, GENERIC, fixed)[0] is sol.realization
+    new, note = printable.roomier(sol.realization, GENERIC, fixed, others)
+    assert printable.predicted_fit(new, GENERIC)[1] >= printable.FIT_MARGIN
+    used = [i for i, jf in others.items() if np.array_equal(jf, new.joint_factors)]
+    assert len(used) == 1 and f"loop {used[0]}" in note
+    assert new.certified_clearance >= 2 * new.radius

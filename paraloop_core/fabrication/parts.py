@@ -26,7 +26,7 @@ relative motion is a rotation about it): the two parts there never meet, with ra
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import manifold3d as m3d
 import numpy as np
@@ -35,7 +35,7 @@ from paraloop_core.errors import FabricationError
 from paraloop_core.fabrication.voxelspace import point_segment_distance
 from paraloop_core.linkage import loops
 
-MIN_WALL_MM = 0.8  # thinnest boss wall around a bore we accept (typical FDM: 2 perimeters)
+MIN_WALL_MM = 0.8  # default thinnest boss wall (typical FDM: 2 perimeters); PartSpec.wall_mm
 
 
 @dataclass(frozen=True)
@@ -50,6 +50,9 @@ class PartSpec:
     boss_length_mm: float | None = None
     print_in_place: bool = False
     segments: int = 48
+    #: thinnest wall: around a bore, and each boss's axial thickness where the pin is long
+    #: enough for two (the split moves to keep it; sizing makes the pins long enough)
+    wall_mm: float = MIN_WALL_MM
 
 
 @dataclass(frozen=True)
@@ -114,22 +117,24 @@ def resolve_spec(spec: PartSpec, radius: float, scale: float) -> PartSpec:
     """Fill the derived sizes and validate. Defaults keep the printed geometry inside the
     realized (certified) radius minus clearances: bar ``rho = radius * scale - clearance``,
     boss radius ``radius * scale - clearance / 2`` (bosses then end at the joint points:
-    boss length 0), pin ``min(boss / 2, boss - clearance - MIN_WALL_MM)``. Raises
+    boss length 0), pin ``min(boss / 2, boss - clearance - wall_mm)``. Raises
     :class:`FabricationError` (``bad-parameters``)."""
-    c = spec.clearance_mm
+    c, wall = spec.clearance_mm, spec.wall_mm
     if not (np.isfinite(c) and c >= 0):
         raise FabricationError(f"clearance must be >= 0 mm, got {c}", "bad-parameters")
+    if not (np.isfinite(wall) and wall > 0):
+        raise FabricationError(f"wall must be > 0 mm, got {wall}", "bad-parameters")
     if spec.segments < 8:
         raise FabricationError("segments must be >= 8", "bad-parameters")
     rho = spec.rho_mm if spec.rho_mm is not None else radius * scale - c
     boss = spec.boss_radius_mm if spec.boss_radius_mm is not None else rho + c / 2
     pin = spec.pin_radius_mm if spec.pin_radius_mm is not None else \
-        min(0.5 * boss, boss - c - MIN_WALL_MM)
+        min(0.5 * boss, boss - c - wall)
     length = spec.boss_length_mm if spec.boss_length_mm is not None else 0.0
     for name, v in (("bar radius", rho), ("pin radius", pin), ("boss radius", boss)):
         if not (np.isfinite(v) and v > 0):
             # smallest size giving a 0.5 mm pin with the default proportions
-            need = spec.size_mm * (2 * (c + MIN_WALL_MM) + c / 2) / max(radius * scale, 1e-9)
+            need = spec.size_mm * (2 * (c + wall) + c / 2) / max(radius * scale, 1e-9)
             raise FabricationError(
                 f"{name} must be > 0 mm, got {v:.4g}: the realized bars are only "
                 f"{radius * scale:.3g} mm thick at this size; use a size of at least "
@@ -137,14 +142,15 @@ def resolve_spec(spec: PartSpec, radius: float, scale: float) -> PartSpec:
                 "bad-parameters")
     if not (np.isfinite(length) and length >= 0):
         raise FabricationError(f"boss length must be >= 0 mm, got {length}", "bad-parameters")
-    if pin + c + MIN_WALL_MM > boss + 1e-9:
+    if pin + c + wall > boss + 1e-9:
         raise FabricationError(
-            f"pin radius {pin:.3g} + clearance {c:.3g} + wall {MIN_WALL_MM} mm exceeds the boss "
+            f"pin radius {pin:.3g} + clearance {c:.3g} + wall {wall:g} mm exceeds the boss "
             f"radius {boss:.3g} mm", "bad-parameters")
     if not rho < boss:
         raise FabricationError(f"bar radius {rho:.3g} mm must be below the boss radius "
                                f"{boss:.3g} mm", "bad-parameters")
-    return PartSpec(spec.size_mm, c, rho, boss, pin, length, spec.print_in_place, spec.segments)
+    return replace(spec, rho_mm=rho, boss_radius_mm=boss, pin_radius_mm=pin,
+                   boss_length_mm=length)
 
 
 def _frame_to(p0: np.ndarray, p1: np.ndarray) -> np.ndarray:
@@ -222,6 +228,8 @@ def _split(length: float, lower: np.ndarray, upper: np.ndarray, w: np.ndarray, s
         raise FabricationError(
             f"joint {joint}: pin {length:.3g} mm is too short for bosses with clearance {c} mm; "
             "raise the offsets or the boss length", "bad-parameters")
+    if 2 * spec.wall_mm <= ceil - floor + 8 * eps:  # room for two bosses a wall thick
+        floor, ceil = c / 2 - b + spec.wall_mm, length + b - c / 2 - spec.wall_mm
     lo = reach(lower, w) + c / 2 + eps  # link i's bar needs m >= lo
     hi = length - reach(upper, -w) - c / 2 - eps  # link i+1's bar needs m <= hi
     m = float(np.clip(length / 2, lo, hi) if lo <= hi else (lo + hi) / 2)

@@ -9,8 +9,10 @@ segments: radius ``R_bar`` about its bar, ``R_boss`` (the joint hardware) about 
 
 * ``2 R_bar + c <= k L`` for bar-bar pairs (consecutive bars included),
 * ``R_bar + R_boss + c <= k L`` for bar-pin pairs, ``2 R_boss + c <= k L`` for pin-pin pairs,
-and a printer needs ``R_bar >= wall / 2`` (the bar is one wall thick) and
-``R_boss >= pin + c + wall`` (a pin of the profile's radius in a bore with a wall around it).
+and a printer needs ``R_bar >= wall / 2`` (the bar is one wall thick),
+``R_boss >= pin + c + wall`` (a pin of the profile's radius in a bore with a wall around it)
+and ``k P >= 2 wall + c`` for the shortest pin ``P`` (the two bosses on a pin, each a wall
+thick, with the clearance between them).
 Each constraint is linear in ``k``: the smallest size follows in closed form, and at any larger
 size the radii grow to the certified limits, bosses first (the pin in its bore is the weak
 spot; at most :data:`BOSS_CAP` of the size), then bars up to :data:`BAR_TO_BOSS` of the
@@ -75,6 +77,8 @@ class Limits:
     bar_pin: float
     pin_pin: float
     extent: float
+    #: shortest pin ``E_i S_{i+1}``
+    pin_length: float
 
 
 @dataclass(frozen=True)
@@ -102,9 +106,10 @@ def limits(points: np.ndarray, pairs: np.ndarray, pair_lower: np.ndarray,
     if not (np.all(np.isfinite(low)) and np.all(np.isfinite(joint_lower))):
         raise FabricationError("the realization has no proven pair bounds", "bad-parameters")
     bb = min(low[e[:, 0] & e[:, 1]].min(initial=np.inf), float(np.min(joint_lower)))
+    pins = np.linalg.norm(pts[1::2] - np.roll(pts[0::2], -1, axis=0), axis=-1)
     return Limits(bb, low[e[:, 0] != e[:, 1]].min(initial=np.inf),
                   low[~e[:, 0] & ~e[:, 1]].min(initial=np.inf),
-                  float(np.max(np.ptp(pts, axis=0))))
+                  float(np.max(np.ptp(pts, axis=0))), float(pins.min()))
 
 
 def choose_size(lim: Limits, printer: Printer, size_mm: float | None = None) -> Sizing:
@@ -116,6 +121,7 @@ def choose_size(lim: Limits, printer: Printer, size_mm: float | None = None) -> 
         "bar-bar clearance": (2 * bar_min + c) / lim.bar_bar,
         "bar-boss clearance": (bar_min + boss_min + c) / lim.bar_pin,
         "boss-boss clearance": (2 * boss_min + c) / lim.pin_pin,
+        "boss thickness on the shortest pin": (2 * wall + c) / max(lim.pin_length, 1e-300),
     }
     binding = max(need, key=need.get)
     min_size = need[binding] * lim.extent
