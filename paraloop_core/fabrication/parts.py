@@ -341,10 +341,12 @@ def _body_capsules(body: m3d.Manifold, p0: np.ndarray, p1: np.ndarray,
     t = np.clip((tri.mean(1) - p0) @ d / float(d @ d), 0.0, 1.0 - 1e-12)
     piece = (t * pieces).astype(int)
     ends = p0 + np.linspace(0.0, 1.0, pieces + 1)[:, None] * d
+    # manifold3d keeps float32 vertices: the solid they came from may lie a rounding away
+    pad = 4.0 * float(np.finfo(np.float32).eps) * float(np.abs(tri).max(initial=0.0))
     out = []
     for k in np.unique(piece):
         v = tri[piece == k].reshape(-1, 3)
-        r = float(point_segment_distance(v, ends[k], ends[k + 1]).max())
+        r = float(point_segment_distance(v, ends[k], ends[k + 1]).max()) + pad
         out.append((ends[k], ends[k + 1], r, -1))
     return out
 
