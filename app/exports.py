@@ -2,8 +2,9 @@
 
 *Export result* downloads the result JSON (:func:`export_files`); *Export all* one zip
 ``paraloop-<design>.zip`` (:func:`export_zip`) with that JSON and, when the design has a
-realization, the fabrication output of :func:`export.export_design_parts` (STL per link,
-``paraloop.3mf``, ``assembly.glb``, ``report.json`` with the verification).
+realization, the printable parts of :func:`printable.export_printable`, as ``paraloop export``
+writes them (STL per link, 3MF plates, ``assembly.glb``, the assembly guide, ``report.json``
+with sizing, walls and the verification). Size 0 is automatic, as in the CLI.
 """
 
 from __future__ import annotations
@@ -12,13 +13,14 @@ import io
 import json
 import zipfile
 from collections.abc import Callable
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 
 from app.state import FabSettings
 from paraloop_core import pipeline
-from paraloop_core.fabrication import export
+from paraloop_core.fabrication import export, printable, sizing
 from paraloop_core.fabrication.parts import PartSpec, design_scale
 
 #: Carving orders offered by the panel: target links first to last, each carved by the later.
@@ -67,13 +69,36 @@ def carve_order(fab: FabSettings) -> list[tuple[int, int]]:
     return [(a, b) for k, a in enumerate(links) for b in links[k + 1:]]
 
 
+def printer_of(fab: FabSettings) -> sizing.Printer:
+    """The generic printer profile with the panel's clearance."""
+    return replace(sizing.PRINTERS["generic"], clearance_mm=fab.clearance_mm)
+
+
+def sizing_of(real: Any, fab: FabSettings) -> sizing.Sizing:
+    """Size and radii for the generic profile (:func:`sizing.choose_size`): at the panel's
+    size, or with size 0 the automatic one (before any bed-fit shrink). Raises
+    FabricationError when the given size is below the profile's minimum."""
+    lim = sizing.limits(real.points, real.pairs, real.pair_lower, real.joint_lower)
+    return sizing.choose_size(lim, printer_of(fab), fab.size_mm if fab.size_mm > 0 else None)
+
+
+def size_of(real: Any, fab: FabSettings) -> float:
+    """The size (mm) :func:`sizing_of` uses."""
+    return fab.size_mm if fab.size_mm > 0 else sizing_of(real, fab).size_mm
+
+
 def fabrication_options(real: Any, fab: FabSettings, carved: bool) -> dict[str, Any]:
     """Keyword options of :func:`export.export_parts` (and, with ``carved``, of
-    :func:`export.carve_design_spaces`) for a realization and the panel's settings."""
-    opts: dict[str, Any] = {"spec": PartSpec(size_mm=fab.size_mm, clearance_mm=fab.clearance_mm,
-                                             print_in_place=fab.print_in_place)}
+    :func:`export.carve_design_spaces`) for a realization and the panel's settings, the part
+    radii from :func:`sizing_of`."""
+    sz = sizing_of(real, fab)
+    size = sz.size_mm
+    opts: dict[str, Any] = {"spec": PartSpec(
+        size_mm=size, clearance_mm=fab.clearance_mm, rho_mm=sz.bar_radius_mm,
+        boss_radius_mm=sz.boss_radius_mm, pin_radius_mm=sz.pin_radius_mm,
+        print_in_place=fab.print_in_place, wall_mm=printer_of(fab).wall_mm)}
     if carved:
-        scale = design_scale(np.asarray(real.points, float), fab.size_mm)
+        scale = design_scale(np.asarray(real.points, float), size)
         opts["space_radius"] = (fab.space_radius_mm / scale if fab.space_radius_mm > 0
                                 else float(np.median(real.design_space_radii)))
         opts["resolution"] = fab.resolution
@@ -101,11 +126,17 @@ def export_zip(solution: pipeline.Solution, fab: FabSettings,
     real = solution.realization
     if real is not None:
         opts = fabrication_options(real, fab, fab.carved_parts)
-        parts = export.export_design_parts(real.joint_factors, real.points, real.radius,
-                                                ground=fab.ground, progress=progress,
-                                                effector=solution.end_effector, **opts)
-        files += parts
-        report = json.loads(dict(parts)["report.json"])
+        opts.pop("spec")  # export_printable sizes the parts for the printer
+        design = solution.design
+        result = printable.export_printable(
+            real, printer=printer_of(fab),
+            size_mm=size_of(real, fab) if fab.carved_parts else (fab.size_mm or None),
+            print_in_place=fab.print_in_place, ground=fab.ground,
+            effector=solution.end_effector, fixed=dict(design.realization.fixed),
+            alternatives={i: lp.joint_factors for i, lp in enumerate(solution.loops)
+                          if i != design.loop}, progress=progress, **opts)
+        files += result.files
+        report = json.loads(dict(result.files)["report.json"])  # as downloaded
     buf = io.BytesIO()
     with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as zf:
         for name, data in files:

@@ -48,14 +48,15 @@ def absolute_mesh(design: Design) -> Design:
 
 @dataclasses.dataclass(frozen=True)
 class FabSettings:
-    """Fabrication panel settings (validated by the panel): part size and clearance in mm,
-    carving radius in mm (0: the realization's median design-space radius), voxels along a
-    space, the carving order (a preset name or ``custom``) and its custom pairs text."""
+    """Fabrication panel settings (validated by the panel): part size (0: automatic, the size
+    at which the parts meet the generic printer profile) and clearance in mm, carving radius in
+    mm (0: the realization's median design-space radius), voxels along a space, the carving
+    order (a preset name or ``custom``) and its custom pairs text."""
 
-    size_mm: float = 400.0
+    size_mm: float = 0.0
     clearance_mm: float = 0.3
     print_in_place: bool = False
-    ground: bool = False
+    ground: bool = True
     space_radius_mm: float = 0.0
     resolution: int = 96
     order: str = "base first"

@@ -112,8 +112,9 @@ def test_roomier_realization_when_the_bed_is_too_small():
 def test_roomier_tries_the_design_s_other_loops():
     """Random design 11: its own loop, even with d and rho x2 .. x8, is predicted not to fit
     the generic bed; another of its nine loops does, and is certified like the first."""
-    import paraloop_core as pl
     from independent.generic_designs import random_design
+
+    import paraloop_core as pl
     from paraloop_core.fabrication import printable
 
     design = pl.design_from_dict(random_design(11, 1.0))

@@ -15,7 +15,7 @@ import viser
 from test_studio_server import click, gizmo, settle
 
 from app import studio as studio_mod
-from app.exports import carve_order, parse_order
+from app.exports import carve_order, parse_order, size_of
 from app.panels.fabrication import check_setting
 from app.state import FabSettings
 from paraloop_core import design as design_mod
@@ -58,11 +58,12 @@ def wait_long(app, seconds: float = 120.0) -> None:
 
 def test_settings_are_validated(tv8):
     inputs = tv8.fabrication.inputs
+    assert tv8.state.fab.size_mm == 0.0 and "0 = automatic" in inputs["size_mm"].hint
     inputs["size_mm"].value = -5.0
     title, body, error = tv8.notifications[-1]
-    assert error and "size must be > 0" in body and tv8.state.fab.size_mm == 400.0
+    assert error and "must be >= 0 mm" in body and tv8.state.fab.size_mm == 0.0
     settle(tv8)
-    assert inputs["size_mm"].value == 400.0  # the kept value is written back
+    assert inputs["size_mm"].value == 0.0  # the kept value is written back
     inputs["clearance_mm"].value = -0.1
     assert tv8.notifications[-1][2] and tv8.state.fab.clearance_mm == 0.3
     inputs["clearance_mm"].value = 0.0
@@ -96,7 +97,9 @@ def test_carve_draws_animated_spaces_and_the_bound(sun):
     seconds = time.perf_counter() - t0
     scene = sun.scene
     assert len(scene.spaces) == 6 and all(h.visible for _, h in scene.spaces), sun.notifications
-    assert "Continuous-motion bound" in fab.bound.content and " mm at 400 mm" in fab.bound.content
+    size = size_of(sun.solution.realization, sun.state.fab)  # automatic: the printer's
+    assert size >= 150.0 and f" mm at {size:.0f} mm" in fab.bound.content
+    assert "Continuous-motion bound" in fab.bound.content
     assert "approximate" in fab.bound.content
     margin = fab.carving["max_motion_margin"]
     assert margin > 0 and f"{margin:.3g}" in fab.bound.content
@@ -151,7 +154,11 @@ def test_export_zip_has_parts_and_a_verified_report(tv8):
         assert zf.read("assembly.glb")[:4] == b"glTF" and len(zf.read("link_0.stl")) > 1000
     assert result["format"] == "paraloop-result"
     ver = report["verification"]
-    assert ver["ok"] and report["spec"]["size_mm"] == 400.0
+    sz = report["sizing"]  # automatic size for the generic printer, as `paraloop export`
+    assert ver["ok"] and sz["chosen"] == "auto" and all(sz["fits_bed"])
+    assert report["walls"]["ok"] and report["spec"]["size_mm"] == sz["size_mm"]
+    assert report["grounding"]["link"] == 3  # grounded by default: the column that clears
+    assert f"Size {sz['size_mm']:.0f} mm" in tv8.fabrication.verification.content
     assert tv8.fabrication.report == report
     text = tv8.fabrication.verification.content
     assert "ok" in text and f"{ver['min_gap_mm']:.3f} mm" in text
@@ -165,13 +172,9 @@ def test_export_failures_keep_the_design(tv8):
     click(tv8.fabrication.export)
     wait_long(tv8)
     title, body, error = tv8.notifications[-1]
-    assert error and title == "Export failed" and "size of at least" in body
-    tv8.fabrication.inputs["size_mm"].value = 400.0
-    tv8.fabrication.inputs["ground"].value = True  # no grounding column fits this design
-    click(tv8.fabrication.export)
-    wait_long(tv8)
-    title, body, error = tv8.notifications[-1]
-    assert error and title == "Export failed" and "grounding" in body
+    # the profile's minimum, named with the constraint that sets it
+    assert error and title == "Export failed" and "needs at least 240 mm" in body
+    assert "bar-boss clearance" in body
     assert len(tv8.downloads) == n and not tv8.fabrication.progress.visible
     assert tv8.state.design is before and tv8.solution is sol and tv8.error is None
     # without a realization: the result JSON only, and a notification saying so

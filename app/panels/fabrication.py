@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 
 import viser
 
-from app.exports import CUSTOM, ORDER_PRESETS, carve_spaces, export_zip, parse_order
+from app.exports import CUSTOM, ORDER_PRESETS, carve_spaces, export_zip, parse_order, size_of
 from app.panels.design import handler, writing_back
 from app.scene import SPACES_LAYER
 from app.state import FabSettings
@@ -42,8 +42,6 @@ def check_setting(key: str, value: Any) -> Any:
         value = float(value)
         if not math.isfinite(value):
             raise ValueError("must be a finite number")
-        if key == "size_mm" and value <= 0:
-            raise ValueError(f"the size must be > 0 mm, got {value:g}")
         if value < 0:
             raise ValueError(f"must be >= 0 mm, got {value:g}")
     elif key == "resolution":
@@ -68,8 +66,11 @@ class FabricationPanel:
         self.progress_log: list[tuple[str, float]] = []
         with gui.add_folder("Fabrication", expand_by_default=False):
             self.inputs: dict[str, Any] = {
-                "size_mm": gui.add_number("Size (mm)", initial_value=fab.size_mm, step=10.0,
-                                          hint="longest side of the linkage in mm"),
+                "size_mm": gui.add_number(
+                    "Size (mm)", initial_value=fab.size_mm, step=10.0,
+                    hint="longest side of the linkage in mm; 0 = automatic: the size at which "
+                         "every part meets the printer profile (walls 2 mm, pin radius 1 mm, "
+                         "bed 250 x 210 x 210 mm) and fits the bed"),
                 "clearance_mm": gui.add_number("Clearance (mm)", initial_value=fab.clearance_mm,
                                                step=0.05, hint="joint clearance in mm"),
                 "print_in_place": gui.add_checkbox("Print in place", fab.print_in_place),
@@ -173,11 +174,12 @@ class FabricationPanel:
             studio.scene.apply_layers(st.hidden)
         self.carving = cv.report
         margin = cv.report["max_motion_margin"]
-        mm = margin * design_scale(real.points, fab.size_mm)
+        size = size_of(real, fab)
+        mm = margin * design_scale(real.points, size)
         empty = [i for i, b in enumerate(bodies) if b is None]
         self.bound.content = (
             f"**Continuous-motion bound:** motion margin {margin:.3g} design units "
-            f"= {mm:.3g} mm at {fab.size_mm:g} mm. {BOUND_HELP} "
+            f"= {mm:.3g} mm at {size:.0f} mm. {BOUND_HELP} "
             f"Carved in {cv.report['seconds']:.1f} s, voxels kept {cv.report['voxels']}"
             + (f"; too thin to mesh: links {empty}." if empty else "."))
         self.progress_text.content = f"Carving done ({len(bodies) - len(empty)} spaces)."
@@ -200,9 +202,12 @@ class FabricationPanel:
             self.verification.content = "*Verification: no realization, no parts.*"
             self.progress_text.content = f"Exported {name}."
             return
-        v = report["verification"]
+        v, sz = report["verification"], report["sizing"]
         word = "ok ✓" if v["ok"] else "FAILED ✗"
         self.verification.content = (
+            f"**Size {sz['size_mm']:.0f} mm** ({sz['chosen']}), walls >= "
+            f"{report['walls']['p5_mm']:.2f} mm (5th percentile), bars "
+            f"{2 * sz['bar_radius_mm']:.2f} mm thick. "
             f"**Verification: {word}** min gap {v['min_gap_mm']:.3f} mm, certified continuous "
             f"gap {v['continuous_min_gap_mm']:.3f} mm, joint clearance "
             f"{v['joint_clearance_mm']:.3f} mm" + ("" if v["printable"] else
@@ -210,3 +215,5 @@ class FabricationPanel:
         self.progress_text.content = f"Exported {name}."
         if not v["ok"]:
             studio.notify("Verification failed", "see report.json in the zip", error=True)
+        elif report["warnings"]:
+            studio.notify("Exported, with notes", " ".join(report["warnings"]))

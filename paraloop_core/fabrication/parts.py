@@ -228,7 +228,7 @@ def _split(length: float, lower: np.ndarray, upper: np.ndarray, w: np.ndarray, s
         raise FabricationError(
             f"joint {joint}: pin {length:.3g} mm is too short for bosses with clearance {c} mm; "
             "raise the offsets or the boss length", "bad-parameters")
-    if 2 * spec.wall_mm <= ceil - floor + 8 * eps:  # room for two bosses a wall thick
+    if 2 * spec.wall_mm <= ceil - floor + 8 * eps + 1e-9:  # room for two bosses a wall thick
         floor, ceil = c / 2 - b + spec.wall_mm, length + b - c / 2 - spec.wall_mm
     lo = reach(lower, w) + c / 2 + eps  # link i's bar needs m >= lo
     hi = length - reach(upper, -w) - c / 2 - eps  # link i+1's bar needs m <= hi
