@@ -127,14 +127,12 @@ def export_zip(solution: pipeline.Solution, fab: FabSettings,
     if real is not None:
         opts = fabrication_options(real, fab, fab.carved_parts)
         opts.pop("spec")  # export_printable sizes the parts for the printer
-        design = solution.design
         result = printable.export_printable(
             real, printer=printer_of(fab),
             size_mm=size_of(real, fab) if fab.carved_parts else (fab.size_mm or None),
             print_in_place=fab.print_in_place, ground=fab.ground,
-            effector=solution.end_effector, fixed=dict(design.realization.fixed),
-            alternatives={i: lp.joint_factors for i, lp in enumerate(solution.loops)
-                          if i != design.loop}, progress=progress, **opts)
+            effector=solution.end_effector, fixed=dict(solution.design.realization.fixed),
+            alternatives=solution.other_loops(), progress=progress, **opts)
         files += result.files
         report = json.loads(dict(result.files)["report.json"])  # as downloaded
     buf = io.BytesIO()

@@ -42,8 +42,7 @@ def run_one(item: tuple[str, object]) -> dict:
             return {**row, "outcome": "not realized", "time": time.perf_counter() - t0}
         res = printable.export_printable(
             real, effector=sol.end_effector, fixed=dict(design.realization.fixed),
-            alternatives={i: lp.joint_factors for i, lp in enumerate(sol.loops)
-                          if i != design.loop})
+            alternatives=sol.other_loops())
     except ValueError as exc:  # the CLI's refusals (FabricationError etc.)
         return {**row, "outcome": f"refused: {' '.join(str(exc).split()[:12])}",
                 "time": time.perf_counter() - t0}

@@ -52,6 +52,11 @@ class Solution:
     def loop(self) -> loops.Loop:
         return self.loops[self.design.loop]
 
+    def other_loops(self) -> dict[int, np.ndarray]:
+        """Joint factors ``(6, 8)`` of the loops other than the design's, by loop index (the
+        alternatives an export may realize when the design's loop is too thin to print)."""
+        return {i: lp.joint_factors for i, lp in enumerate(self.loops) if i != self.design.loop}
+
 
 def design_poses(design: Design) -> np.ndarray:
     """Unit world poses ``(m, 8)`` of the design's targets."""

@@ -119,7 +119,7 @@ def test_roomier_tries_the_design_s_other_loops():
 
     design = pl.design_from_dict(random_design(11, 1.0))
     sol = pl.solve(design)
-    others = {i: lp.joint_factors for i, lp in enumerate(sol.loops) if i != design.loop}
+    others = sol.other_loops()
     fixed = dict(design.realization.fixed)
     assert printable.predicted_fit(sol.realization, GENERIC)[1] < printable.FIT_MARGIN
     assert printable.roomier(sol.realization, GENERIC, fixed)[0] is sol.realization

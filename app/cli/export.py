@@ -62,8 +62,7 @@ def cmd_export(args: argparse.Namespace) -> int:
             ground=not args.no_ground, ground_axis=args.ground_axis, ground_link=args.ground_link,
             space_radius=args.carve_radius, resolution=args.resolution, samples=args.samples,
             effector=sol.end_effector, rhino=args.rhino, fixed=dict(design.realization.fixed),
-            alternatives={i: lp.joint_factors for i, lp in enumerate(sol.loops)
-                          if i != design.loop},
+            alternatives=sol.other_loops(),
             progress=None if args.quiet else _print_progress)
     except RealizationError as exc:
         print(f"error: {path}: {outputs.one_line(exc)}", file=sys.stderr)
