@@ -234,3 +234,31 @@ def test_long_part_lies_diagonally_on_the_bed():
     assert np.allclose(laid.bounds[0, 2], 0.0, atol=1e-6)
     assert laid.extents[2] == pytest.approx(8.0, abs=1e-3)
     assert np.all(laid.bounds[0] >= -1e-6) and np.all(laid.bounds[1] <= np.array(bed) + 1e-6)
+
+
+def test_a_part_torn_by_its_tessellation_is_built_again(monkeypatch):
+    """A boolean may pinch two vertices onto one point (random design 49): the part then is
+    not watertight as a slicer reads it, and the parts are built again with more segments."""
+    jf, pts, radius = example_loop()
+    seen = []
+    real_export = export.export_assembly
+
+    def flaky(asm, **kw):
+        seen.append(asm.spec.segments)
+        if len(seen) == 1:
+            raise FabricationError("link_2 is not watertight", "not-watertight")
+        return real_export(asm, **kw)
+
+    monkeypatch.setattr(export, "export_assembly", flaky)
+    res = export.export_parts(jf, pts, radius, spec=parts.PartSpec(size_mm=150.0), verify=False)
+    assert seen == [48, 50] and res.assembly.spec.segments == 50
+    seen.clear()
+
+    def torn(asm, **kw):
+        seen.append(asm.spec.segments)
+        raise FabricationError("link_2 is not watertight", "not-watertight")
+
+    monkeypatch.setattr(export, "export_assembly", torn)
+    with pytest.raises(FabricationError, match="not watertight"):
+        export.export_parts(jf, pts, radius, spec=parts.PartSpec(size_mm=150.0), verify=False)
+    assert seen == [48, 50, 54]  # every tessellation tried, then the error

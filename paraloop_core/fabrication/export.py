@@ -30,7 +30,7 @@ import itertools
 import json
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from typing import TYPE_CHECKING
 
 import manifold3d as m3d
@@ -324,6 +324,12 @@ def stage(progress: Progress | None, lo: float, hi: float) -> Progress | None:
     return lambda f, msg: progress(lo + (hi - lo) * f, msg)
 
 
+#: Extra polygon segments tried when a part is not watertight as a slicer reads it: a boolean
+#: can pinch two vertices onto one point (random design 49: a valid manifold3d mesh with two
+#: vertices at the same float32 position), which another tessellation does not.
+RETESSELLATE = (0, 2, 6)
+
+
 def export_parts(joint_factors: np.ndarray, points: np.ndarray, radius: float, *,
                  spec: PartSpec | None = None, ground: bool = True, ground_axis: int | None = None,
                  ground_link: int | None = None,
@@ -390,14 +396,20 @@ def export_parts(joint_factors: np.ndarray, points: np.ndarray, radius: float, *
                                "sampled_clearance_mm": g.sampled_clearance * scale}
     if progress is not None:
         progress(0.45, "building parts")
-    asm = parts.build_assembly(joint_factors, pts, radius, spec, bodies, extras,
-                               None if el is None else (el.bars, solid))
-    if el is not None:  # P is cut only where it would enter a joint's hardware zone
-        report["end_effector"] = {"method": el.method, "volume_mm3": solid.volume(),
-                                  "kept_mm3": (asm.parts[3].manifold ^ solid).volume()}
-    return export_assembly(asm, verify=verify, samples=samples, extra_report=report,
-                           bed_mm=bed_mm, with_guide=with_guide, rhino=rhino,
-                           progress=stage(progress, 0.5, 1.0))
+    for more in RETESSELLATE:
+        asm = parts.build_assembly(joint_factors, pts, radius,
+                                   replace(spec, segments=spec.segments + more), bodies, extras,
+                                   None if el is None else (el.bars, solid))
+        if el is not None:  # P is cut only where it would enter a joint's hardware zone
+            report["end_effector"] = {"method": el.method, "volume_mm3": solid.volume(),
+                                      "kept_mm3": (asm.parts[3].manifold ^ solid).volume()}
+        try:
+            return export_assembly(asm, verify=verify, samples=samples, extra_report=report,
+                                   bed_mm=bed_mm, with_guide=with_guide, rhino=rhino,
+                                   progress=stage(progress, 0.5, 1.0))
+        except FabricationError as exc:
+            if exc.reason != "not-watertight" or more == RETESSELLATE[-1]:
+                raise
 
 
 def carve_design_spaces(joint_factors: np.ndarray, points: np.ndarray, radius: float,
