@@ -201,3 +201,20 @@ def test_an_emptied_space_stays_empty_without_error():
     empty = sp.with_occupancy(np.zeros_like(sp.occupancy))
     jobs = [(sp.centers(), np.eye(4)[None])]
     assert not sweep.splat_remove(empty, empty.occupancy, jobs, radius).any()
+
+
+def test_coarsened_space_covers_the_fine_region():
+    """Each fine voxel's ball lies in an occupied coarse voxel's ball (the sweep of the coarse
+    source removes at least what the fine one would)."""
+    rng = np.random.default_rng(5)
+    rot = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+    frame = np.eye(4)
+    frame[:3, :3], frame[:3, 3] = rot, rng.normal(size=3)
+    fine = voxelspace.VoxelSpace(rng.random((9, 7, 5)) < 0.2, 0.3, frame)
+    for stride in (1, 2, 3):
+        coarse = fine.coarsened(stride)
+        assert coarse.pitch == pytest.approx(0.3 * stride)
+        assert coarse.half_diagonal == pytest.approx(stride * fine.half_diagonal)
+        d = np.linalg.norm(fine.centers()[:, None] - coarse.centers()[None], axis=-1)
+        assert np.all(d.min(axis=1) + fine.half_diagonal <= coarse.half_diagonal + 1e-12)
+        assert coarse.occupancy.sum() <= fine.occupancy.sum()

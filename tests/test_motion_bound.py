@@ -183,3 +183,32 @@ def test_too_few_cells_is_refused():
     jf = table1.random_loops(1, 1)[0, 0]
     with pytest.raises(ValueError, match="cells must exceed"):
         mbm.motion_bound(jf, 0, 3, np.zeros(3), cells=16)
+
+
+def test_sound_params_cover_every_time_also_near_a_singular_pose():
+    """Carving's samples: every time within moved distance delta of an adjacent sample, where
+    the speed bound is usable (a random loop) and where it would need more than the cap
+    (sun-path-fit passes close to a singular pose: joint-angle subdivision). Checked by dense
+    sampling, also uniform in each norm factor's angle (where the fast turns are)."""
+    import paraloop_core as pl
+
+    rng = np.random.default_rng(7)
+    spf = pl.solve(pl.load_design("assets/designs/sun-path-fit.json")).realization.joint_factors
+    for jf, i, j, speed_ok in [(table1.random_loops(3, 1)[0, 1], 2, 5, True),
+                               (spf, 0, 3, False), (spf, 4, 1, False)]:
+        center, radius, delta = rng.normal(size=3), 0.3, 0.01
+        if not speed_ok:
+            with pytest.raises(FabricationError, match="singular"):
+                mbm.adaptive_params(mbm.motion_bound(jf, i, j, center), radius, delta)
+        u = mbm.sound_params(jf, i, j, center, radius, delta)
+        assert np.all(np.diff(u) > 0) and 0 <= u[0] and u[-1] < 1 and len(u) < 1e5
+        c = loops.relative_motion(jf, i, j)
+        pts = _ball(rng, center, radius, 8)
+        fast = poly.t_to_param(poly.cycle_parameters(
+            jf[:3, 0], np.linalg.norm(jf[:3, 1:4], axis=-1), 3000)) % 1.0
+        dense = np.sort(np.r_[rng.uniform(size=6000), fast])
+        k = np.searchsorted(u, dense) % len(u)
+        at = _positions(c, dense, pts)
+        near = [np.linalg.norm(at - _positions(c, u[idx], pts), axis=-1).max(-1)
+                for idx in (k, k - 1)]
+        assert np.all(np.minimum(*near) <= delta * (1 + 1e-9))

@@ -5,7 +5,9 @@ into a target link's voxel grid (:mod:`voxelspace`) to remove every voxel it can
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 from scipy import ndimage
@@ -13,9 +15,13 @@ from scipy import ndimage
 from paraloop_core.algebra import dq, poly
 from paraloop_core.fabrication.voxelspace import VoxelSpace
 from paraloop_core.linkage import loops
-from paraloop_core.realization.motion_bound import adaptive_params, motion_bound
+from paraloop_core.realization.motion_bound import sound_params
 
-_CHUNK_POINTS = 3_000_000  # points transformed per numpy call (memory only: ~36 MB float32)
+#: Source voxels per axis swept as one block: the sweep of a solid costs (boundary points) x
+#: (time samples), so stride 2 is 4x faster; the removal reach grows by one source
+#: half-diagonal (0.87 voxel), a slightly more conservative carving.
+SOURCE_STRIDE = 2
+_CHUNK_POINTS = 1_000_000  # points transformed per numpy call (memory: ~12 MB float32 each)
 
 
 def splat_remove(target: VoxelSpace, keep: np.ndarray,
@@ -33,17 +39,25 @@ def splat_remove(target: VoxelSpace, keep: np.ndarray,
     to_idx = np.diag([1 / target.pitch] * 3 + [1.0])
     to_idx[:3, 3] = pad + 0.5
     lim = shape.astype(np.uint32)
+    chunks = []
     for src, mats in jobs:
-        m32 = (to_idx @ mats).astype(np.float32)
-        src32 = np.asarray(src, np.float32)
+        # rows (x, y, z) of the matrices, transposed: one batched BLAS product per chunk
+        m32 = np.ascontiguousarray((to_idx @ mats)[:, :3, :].transpose(0, 2, 1), np.float32)
+        src32 = np.concatenate([np.asarray(src, np.float32).reshape(-1, 3),
+                                np.ones((len(src), 1), np.float32)], axis=1)
         step = max(1, _CHUNK_POINTS // max(len(src), 1))
-        for t0 in range(0, len(m32), step):  # chunks for memory only
-            m = m32[t0:t0 + step]
-            p = np.einsum("tij,nj->tni", m[:, :3, :3], src32) + m[:, None, :3, 3]
-            i = p.reshape(-1, 3).astype(np.int32).view(np.uint32)  # negatives wrap: rejected
-            ok = (i[:, 0] < lim[0]) & (i[:, 1] < lim[1]) & (i[:, 2] < lim[2])
-            i = i[ok].astype(np.int64)
-            marked[(i[:, 0] * shape[1] + i[:, 1]) * shape[2] + i[:, 2]] = True
+        chunks += [(src32, m32[t0:t0 + step]) for t0 in range(0, len(m32), step)]
+
+    def mark(chunk: tuple[np.ndarray, np.ndarray]) -> None:
+        p = chunk[0] @ chunk[1]  # (t, n, 3) homogeneous transform
+        i = p.reshape(-1, 3).astype(np.int32).view(np.uint32)  # negatives wrap: rejected
+        ok = (i[:, 0] < lim[0]) & (i[:, 1] < lim[1]) & (i[:, 2] < lim[2])
+        i = i[ok].astype(np.int64)
+        marked[(i[:, 0] * shape[1] + i[:, 1]) * shape[2] + i[:, 2]] = True  # idempotent
+
+    # numpy releases the GIL in these array operations: the chunks run on every core
+    with ThreadPoolExecutor(max_workers=min(len(chunks), os.cpu_count() or 1) or 1) as pool:
+        list(pool.map(mark, chunks))
     marked = marked.reshape(shape)
     # Only the box around the occupied voxels needs distances.
     occ_idx = np.argwhere(target.occupancy)
@@ -75,7 +89,7 @@ def sweep_jobs(jf: np.ndarray, a: int, b: int, target: VoxelSpace, boundary: np.
     home = boundary @ frame_b[:3, :3].T + frame_b[:3, 3]
     center = 0.5 * (home.min(0) + home.max(0))
     radius = float(np.max(np.linalg.norm(home - center, axis=1)))
-    u = adaptive_params(motion_bound(jf, a, b, center), radius, delta)
+    u = sound_params(jf, a, b, center, radius, delta)
     # target.frame maps pitch * index -> home, so its inverse gives grid coordinates.
     mats = np.linalg.inv(target.frame) @ relative_mats(jf, a, b, u) @ frame_b
     return [(boundary, mats), (interior, mats[:1])], len(u)
@@ -85,7 +99,9 @@ def solid_jobs(jf: np.ndarray, a: int, b: int, target: VoxelSpace, src: VoxelSpa
                delta: float) -> tuple[list, int, float]:
     """Splat jobs of the sweep of the region of ``src`` (a solid of link b) in link a's grid,
     their sample count and the removal reach (design units): time margin + source ball +
-    rounding to a target centre + target ball."""
+    rounding to a target centre + target ball. The source is swept as blocks of
+    :data:`SOURCE_STRIDE` voxels per axis (:meth:`VoxelSpace.coarsened`, a superset)."""
+    src = src.coarsened(SOURCE_STRIDE)
     occ = src.occupancy
     bnd = occ & ~ndimage.binary_erosion(occ, np.ones((3, 3, 3), bool))
     jobs, nt = sweep_jobs(jf, a, b, target, np.argwhere(bnd) * src.pitch,

@@ -40,6 +40,20 @@ class VoxelSpace:
     def with_occupancy(self, occ: np.ndarray) -> VoxelSpace:
         return VoxelSpace(occ, self.pitch, self.frame)
 
+    def coarsened(self, stride: int) -> VoxelSpace:
+        """Blocks of ``stride`` voxels per axis, occupied where any voxel is: a coarse voxel's
+        ball (radius ``stride`` times this half-diagonal) contains the balls of its voxels
+        (their centres lie within ``(stride - 1) h`` of its centre), so the region only grows."""
+        if stride == 1:
+            return self
+        n = -(-np.array(self.occupancy.shape) // stride)  # ceil
+        occ = np.zeros(n * stride, bool)
+        occ[tuple(slice(0, k) for k in self.occupancy.shape)] = self.occupancy
+        occ = occ.reshape(n[0], stride, n[1], stride, n[2], stride).any(axis=(1, 3, 5))
+        frame = self.frame.copy()  # origin at the centre of block (0, 0, 0)
+        frame[:3, 3] += frame[:3, :3] @ np.full(3, 0.5 * (stride - 1) * self.pitch)
+        return VoxelSpace(occ, self.pitch * stride, frame)
+
 
 def _bar_frame(p0: np.ndarray, p1: np.ndarray) -> np.ndarray:
     """Rotation ``(3, 3)`` with first column along ``p1 - p0`` (any, if degenerate)."""

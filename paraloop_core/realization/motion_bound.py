@@ -264,3 +264,32 @@ def sound_displacement_bounds(joint_factors: np.ndarray, a: int, b: int, center:
     a singular pose; alone where ``bound`` is None). Design units."""
     chain = chain_displacement_bounds(joint_factors, a, b, center, radius, u)
     return chain if bound is None else np.minimum(displacement_bounds(bound, radius, u), chain)
+
+
+def sound_params(joint_factors: np.ndarray, a: int, b: int, center: np.ndarray, radius: float,
+                 delta: float) -> np.ndarray:
+    """Samples ``u`` ``(T,)`` (sorted, in [0, 1)) such that every time is within moved distance
+    ``delta`` of a sample, for all points within ``radius`` of ``center`` (link b in link a's
+    home frame): :func:`adaptive_params` of the speed bound where that is finite enough, else
+    (a motion close to a singular pose) cells split in two until the joint-angle bound
+    (:func:`chain_displacement_bounds`) of every sample is at most ``delta``. Raises
+    FabricationError past :data:`_MAX_SAMPLES` samples."""
+    try:
+        return adaptive_params(motion_bound(joint_factors, a, b, center), radius, delta)
+    except FabricationError:
+        pass
+    u = np.arange(256) / 256.0
+    while True:
+        move = chain_displacement_bounds(joint_factors, a, b, center, radius, u)
+        bad = move > delta
+        if not bad.any():
+            return u
+        # a sample covers the half cells on both sides: split both cells of a bad sample
+        split = bad | np.roll(bad, -1)  # cell i runs from u[i] to u[i + 1] (cyclic)
+        mids = (u + np.append(u[1:], u[0] + 1.0)) / 2.0 % 1.0
+        u = np.unique(np.concatenate([u, mids[split]]))
+        if len(u) > _MAX_SAMPLES:
+            raise FabricationError(
+                f"the motion of link {b} relative to link {a} needs more than {_MAX_SAMPLES:g} "
+                f"samples to move at most {delta:.3g} between them; use a coarser resolution",
+                "bad-parameters")
