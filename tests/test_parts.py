@@ -117,8 +117,10 @@ def _lean_points(lean_lower: bool) -> np.ndarray:
     """A polyline whose joint 0 pin runs from E_0 = (0,0,0) to S_1 = (0,0,10) (mm): link 1's
     bar leans back from S_1 over the pin, link 0's bar leans away or (``lean_lower``) over it."""
     s0 = [0.0, -30.0, 16.0] if lean_lower else [0.0, -30.0, -20.0]
+    # the other bars leave their pins at right angles (a bar along its pin's axis would be
+    # cut off its boss by the through bore: the build refuses such a link as falling apart)
     return np.array([s0, [0, 0, 0], [0, 0, 10], [7, 0, 0], [60, 0, 2], [60, 30, 2],
-                     [60, 60, 2], [30, 60, 2], [0, 60, 2], [-30, 60, 2], [-30, 30, 2],
+                     [60, 60, 2], [30, 60, 2], [0, 60, 2], [0, 90, 2], [-30, 90, 2],
                      [-30, 0, 2]], float)
 
 
@@ -173,3 +175,16 @@ def test_hardware_fits_at_a_moved_split(lean_lower):
     assert (solid[False] ^ solid[True]).is_empty()
     gap = solid[False].min_gap(solid[True], 1.0)
     assert SPEC.clearance_mm * 0.95 <= gap <= SPEC.clearance_mm + 1e-6
+
+
+def test_loose_shards_are_dropped_and_a_severed_link_is_refused():
+    hub = parts.cylinder(np.zeros(3), np.array([0.0, 0.0, 5.0]), 3.0, 48)
+    shard = parts.m3d.Manifold.cube((1.0, 1.0, 1.0)).translate((20.0, 0.0, 0.0))
+    kept = parts._joined(hub + shard, [hub], 0)
+    assert len(kept.decompose()) == 1 and kept.volume() == pytest.approx(hub.volume())
+    # a bar along its pin's axis: the through bore cuts it off its boss
+    pts = _lean_points(True)
+    pts[9] = [-30.0, 60.0, 2.0]  # E_4 on the axis of joint 3's pin E_3 S_4
+    spec = parts.PartSpec(size_mm=90.0, rho_mm=1.0, boss_radius_mm=3.3, pin_radius_mm=1.0)
+    with pytest.raises(FabricationError, match="link 4 falls apart"):
+        parts.build_assembly(example_loop()[0], pts, 1.0, spec)

@@ -300,23 +300,39 @@ def build_assembly(joint_factors: np.ndarray, points: np.ndarray, radius: float,
                                        s_i, e_i)
         for z, upper in ((zones[i], False), (zones[(i - 1) % 6], True)):
             body = body - zone_cut(z, upper, n)
-        bores = []
+        bores, hubs = [], []
         for j, upper in ((i, False), ((i - 1) % 6, True)):
             for p0, p1, r, is_bore in _hardware(zones[j], spec, upper):
                 if is_bore:
                     bores.append(cylinder(p0, p1, r, n))
                 else:
-                    body = body + cylinder(p0, p1, r, n)
+                    hubs.append(cylinder(p0, p1, r, n))
+                    body = body + hubs[-1]
                     caps.append((p0, p1, r, j))
         for solid, cap, r in (extras or {}).get(i, []):
             body = body + solid
             caps.append((cap[0], cap[1], r, -1))
         for bore in bores:
             body = body - bore
+        body = _joined(body, hubs, i)
         _check_manifold(body, f"link {i}")
         parts.append(Part(f"link_{i}", i, body, np.array([[c[0], c[1]] for c in caps]),
                           np.array([c[2] for c in caps]), np.array([c[3] for c in caps])))
     return Assembly(tuple(parts), scale, spec, tuple(zones), jf)
+
+
+def _joined(body: m3d.Manifold, hubs: list[m3d.Manifold], link: int) -> m3d.Manifold:
+    """``body`` without loose shards: where the cuts split it (a carved island cut off by a
+    joint zone), only the piece holding the joint hardware ``hubs`` stays. Raises
+    :class:`FabricationError` if the hardware itself ends up in separate pieces."""
+    pieces = body.decompose()
+    if len(pieces) == 1:
+        return body
+    keep = [p for p in pieces if any(not (p ^ h).is_empty() for h in hubs)]
+    if len(keep) != 1:
+        raise FabricationError(f"link {link} falls apart into {len(keep)} pieces between its "
+                               "joints; use a thicker bar or a larger size", "bad-parameters")
+    return keep[0]
 
 
 def principal_capsules(body: m3d.Manifold, pieces: int = 16) -> list[tuple]:
