@@ -66,9 +66,10 @@ def test_pins_fit_bores_with_clearance(pip):
     poly_err = (spec.pin_radius_mm + spec.clearance_mm) * (1 - np.cos(np.pi / spec.segments))
     for j, z in enumerate(asm.zones):
         lo, up = asm.parts[j], asm.parts[(j + 1) % 6]
-        # the pin of the lower link reaches through the upper link's boss ...
-        boss_up = parts.cylinder(z.at(z.length / 2 + spec.clearance_mm),
-                                 z.at(z.length + spec.boss_length_mm - 1e-3),
+        # the pin of the lower link reaches through the upper link's boss (without
+        # print-in-place into a blind bore, to 2 c short of its far end) ...
+        tip = z.length + spec.boss_length_mm - (0.0 if pip else 2 * spec.clearance_mm)
+        boss_up = parts.cylinder(z.at(z.length / 2 + spec.clearance_mm), z.at(tip - 1e-3),
                                  spec.pin_radius_mm * 0.99, spec.segments)
         assert (lo.manifold ^ boss_up).volume() == pytest.approx(boss_up.volume(), rel=1e-3)
         # ... without touching it: the gap is the clearance (up to the polygon error)
@@ -117,8 +118,7 @@ def _lean_points(lean_lower: bool) -> np.ndarray:
     """A polyline whose joint 0 pin runs from E_0 = (0,0,0) to S_1 = (0,0,10) (mm): link 1's
     bar leans back from S_1 over the pin, link 0's bar leans away or (``lean_lower``) over it."""
     s0 = [0.0, -30.0, 16.0] if lean_lower else [0.0, -30.0, -20.0]
-    # the other bars leave their pins at right angles (a bar along its pin's axis would be
-    # cut off its boss by the through bore: the build refuses such a link as falling apart)
+    # the other bars leave their pins at right angles
     return np.array([s0, [0, 0, 0], [0, 0, 10], [7, 0, 0], [60, 0, 2], [60, 30, 2],
                      [60, 60, 2], [30, 60, 2], [0, 60, 2], [0, 90, 2], [-30, 90, 2],
                      [-30, 0, 2]], float)
@@ -182,9 +182,18 @@ def test_loose_shards_are_dropped_and_a_severed_link_is_refused():
     shard = parts.m3d.Manifold.cube((1.0, 1.0, 1.0)).translate((20.0, 0.0, 0.0))
     kept = parts._joined(hub + shard, [hub], 0)
     assert len(kept.decompose()) == 1 and kept.volume() == pytest.approx(hub.volume())
-    # a bar along its pin's axis: the through bore cuts it off its boss
+    # the hardware of the two joints in separate pieces: a link that would fall apart
+    other = hub.translate((0.0, 0.0, 40.0))
+    with pytest.raises(FabricationError, match="link 4 falls apart"):
+        parts._joined(hub + other + shard, [hub, other], 4)
+
+
+def test_a_bar_along_its_pin_stays_on_its_boss():
+    """A bar leaving its boss along the pin's axis (tv8's link 4 nearly does): the bore is
+    blind, so it does not cut the bar off its boss."""
     pts = _lean_points(True)
     pts[9] = [-30.0, 60.0, 2.0]  # E_4 on the axis of joint 3's pin E_3 S_4
+    pts[10:] = [[-60.0, 90.0, 2.0], [-90.0, 60.0, 2.0]]  # link 5 at right angles to its pin
     spec = parts.PartSpec(size_mm=90.0, rho_mm=1.0, boss_radius_mm=3.3, pin_radius_mm=1.0)
-    with pytest.raises(FabricationError, match="link 4 falls apart"):
-        parts.build_assembly(example_loop()[0], pts, 1.0, spec)
+    asm = parts.build_assembly(example_loop()[0], pts, 1.0, spec)
+    assert all(len(p.manifold.decompose()) == 1 for p in asm.parts)

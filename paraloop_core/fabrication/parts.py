@@ -241,9 +241,14 @@ def _hardware(z: Zone, spec: PartSpec, upper: bool) -> list[tuple]:
     """Hardware pieces of one side of a joint: ``(p0, p1, radius, is_bore)`` cylinders."""
     c, b, length, at = spec.clearance_mm, spec.boss_length_mm, z.length, z.at
     mid = z.split
-    if upper:  # the bore is blind where the neighbour's bar end caps it (assembly: from mid)
+    # Without print-in-place the bore is blind: it stops c short of the boss's far end, where
+    # this link's bar leaves the axis, and the pin stops c short of the bore's bottom. A bore
+    # through that end would cut a bar leaving nearly along the axis off its boss (tv8's
+    # link 4 fell apart in two pieces). Assembly: from the mid-plane side.
+    if upper:
         return [(at(mid + c / 2), at(length + b), spec.boss_radius_mm, False),
-                (at(mid + c / 2 - 1.0), at(length + b + 1.0), spec.pin_radius_mm + c, True)]
+                (at(mid + c / 2 - 1.0), at(length + b + (1.0 if spec.print_in_place else -c)),
+                 spec.pin_radius_mm + c, True)]
     pieces = [(at(-b), at(mid - c / 2), spec.boss_radius_mm, False)]
     start = (mid - c / 2 - b) / 2  # pin root: middle of its own boss
     if spec.print_in_place:
@@ -251,7 +256,7 @@ def _hardware(z: Zone, spec: PartSpec, upper: bool) -> list[tuple]:
         pieces += [(at(start), at(end + head / 2), spec.pin_radius_mm, False),
                    (at(end), at(end + head), spec.boss_radius_mm - 2 * z.eps, False)]
     else:
-        pieces.append((at(start), at(length + b), spec.pin_radius_mm, False))
+        pieces.append((at(start), at(length + b - 2 * c), spec.pin_radius_mm, False))
     return pieces
 
 
