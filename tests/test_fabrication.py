@@ -64,6 +64,7 @@ def test_report_verifies_the_example(exported):
     report = json.loads(dict(exported.files)["report.json"])
     ver = report["verification"]
     assert ver["ok"] and ver["watertight"] and ver["collisions"] == 0
+    assert all(p["pieces"] == 1 for p in ver["parts"])
     assert ver["samples"] == 720 and len(ver["pairs"]) == 15
     assert 0 < ver["continuous_min_gap_mm"] <= ver["min_gap_mm"]
     clearance = report["spec"]["clearance_mm"]

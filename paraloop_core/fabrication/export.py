@@ -148,6 +148,7 @@ def verify_assembly(asm: Assembly, samples: int = 720, search_mm: float | None =
     for p in parts:
         tm = part_trimesh(p)
         part_info.append({"name": p.name, "watertight": bool(tm.is_watertight),
+                          "pieces": len(p.manifold.decompose()),
                           "manifold_status": str(p.manifold.status()),
                           "volume_mm3": float(p.manifold.volume()),
                           "triangles": int(p.manifold.num_tri())})
@@ -216,7 +217,7 @@ def verify_assembly(asm: Assembly, samples: int = 720, search_mm: float | None =
             "max_intersection_mm3": float(vol.max()),
         })
     watertight = all(p["watertight"] and p["manifold_status"] == "Error.NoError"
-                     for p in part_info)
+                     and p["pieces"] == 1 for p in part_info)
     collisions = sum(p["colliding_samples"] for p in pairs_out)
     cont = min(p["continuous_min_gap_mm"] for p in pairs_out)
     report = {
