@@ -128,3 +128,22 @@ def test_roomier_tries_the_design_s_other_loops():
     used = [i for i, jf in others.items() if np.array_equal(jf, new.joint_factors)]
     assert len(used) == 1 and f"loop {used[0]}" in note
     assert new.certified_clearance >= 2 * new.radius
+
+
+def test_a_link_notched_through_raises_the_size():
+    """Random design 0: at the profile's smallest size a bar leaning over its pin is notched
+    through (link 0 would print in two pieces); the size grows until every part is one piece."""
+    from independent.generic_designs import random_design
+
+    import paraloop_core as pl
+    from paraloop_core.fabrication import printable
+
+    design = pl.design_from_dict(random_design(0, 1.0))
+    sol = pl.solve(design)
+    res = printable.export_printable(sol.realization, samples=24, ground=False,
+                                     fixed=dict(design.realization.fixed))
+    sz, ver = res.report["sizing"], res.report["verification"]
+    assert sz["size_mm"] > 1.15 * sz["min_size_mm"]
+    assert any("notched through" in w for w in res.report["warnings"])
+    assert all(p["pieces"] == 1 for p in ver["parts"]) and ver["watertight"]
+    assert all(len(p.manifold.decompose()) == 1 for p in res.assembly.parts)

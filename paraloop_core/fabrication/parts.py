@@ -336,7 +336,9 @@ def _joined(body: m3d.Manifold, hubs: list[m3d.Manifold], link: int) -> m3d.Mani
     keep = [p for p in pieces if any(not (p ^ h).is_empty() for h in hubs)]
     if len(keep) != 1:
         raise FabricationError(f"link {link} falls apart into {len(keep)} pieces between its "
-                               "joints; use a thicker bar or a larger size", "bad-parameters")
+                               "joints (a bar leaning over its pin is notched through); use a "
+                               "larger size or a longer pin (realization offset d)",
+                               "falls-apart")
     return keep[0]
 
 

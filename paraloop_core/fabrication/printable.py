@@ -35,8 +35,10 @@ from paraloop_core.fabrication.parts import Assembly, PartSpec
 from paraloop_core.realization import realize
 from paraloop_core.realization.realize import Realization
 
-#: Rebuilds allowed to shrink an automatically sized assembly onto the bed.
+#: Rebuilds allowed to shrink an automatically sized assembly onto the bed, and to grow it
+#: by :data:`_GROW` where a link falls apart (a bar notched through at a joint).
 _FIT_ROUNDS = 3
+_GROW_ROUNDS, _GROW = 3, 1.2
 #: Factors on d and rho of the realizations :func:`roomier` tries, and the work budget of each
 #: (``realize.Search.work``).
 ROOMIER = (2.0, 4.0, 8.0)
@@ -139,7 +141,9 @@ def export_printable(realization: Realization, *,
     lim = sizing.limits(real.points, real.pairs, real.pair_lower, real.joint_lower)
     auto = size_mm is None
     sz = sizing.choose_size(lim, printer, size_mm)
-    for _ in range(_FIT_ROUNDS + 2):  # the first size, the smaller ones, one column dropped
+    floor, grown = sz.min_size_mm, 0  # no smaller size is tried (the profile, or a link fell
+    # apart there)
+    for _ in range(_FIT_ROUNDS + _GROW_ROUNDS + 2):  # sizes tried: first, larger, smaller
         spec = PartSpec(size_mm=sz.size_mm, clearance_mm=printer.clearance_mm,
                         rho_mm=sz.bar_radius_mm, boss_radius_mm=sz.boss_radius_mm,
                         pin_radius_mm=sz.pin_radius_mm, print_in_place=print_in_place,
@@ -147,15 +151,26 @@ def export_printable(realization: Realization, *,
         build = dict(spec=spec, verify=False, samples=samples, bed_mm=printer.bed_mm,
                      with_guide=False, progress=export.stage(progress, 0.0, 0.5), **options)
         try:
-            result = export.export_parts(real.joint_factors, real.points, real.radius,
-                                         ground=ground, **build)
+            result = None
+            if ground:
+                try:
+                    result = export.export_parts(real.joint_factors, real.points, real.radius,
+                                                 ground=True, **build)
+                except FabricationError as exc:
+                    if exc.reason != "grounding":
+                        raise
+                    ground = False  # no column at this size: not tried again
+                    warnings.append(f"exported without a grounding column: {exc}")
+            if result is None:
+                result = export.export_parts(real.joint_factors, real.points, real.radius,
+                                             ground=False, **build)
         except FabricationError as exc:
-            if not ground or exc.reason != "grounding":
+            # a bar notched through at a joint: the pins grow with the size, the bosses not
+            if exc.reason != "falls-apart" or not auto or grown == _GROW_ROUNDS:
                 raise
-            ground = False  # no column at this size: the smaller ones are not tried again
-            warnings.append(f"exported without a grounding column: {exc}")
-            result = export.export_parts(real.joint_factors, real.points, real.radius,
-                                         ground=False, **build)
+            floor, grown = sz.size_mm * _GROW, grown + 1
+            sz = sizing.choose_size(lim, printer, floor)
+            continue
         extents = part_extents(result)
         fit = sizing.fits_bed(extents, printer)
         column = result.report.get("grounding", {}).get("link")
@@ -170,11 +185,13 @@ def export_printable(realization: Realization, *,
         if fit.all() or not auto:
             break
         smaller = sz.size_mm * min(float(sizing.fit_factor(extents[~fit], printer).min()), 0.99)
-        if smaller < sz.min_size_mm:
+        if smaller < floor:
+            need = f"the {sz.binding} needs at least {np.ceil(sz.min_size_mm):.0f} mm" \
+                if floor == sz.min_size_mm else \
+                f"below {floor:.0f} mm a bar leaning over its pin is notched through"
             raise FabricationError(
-                f"no size fits printer {printer.name!r} (bed {_bed(printer)} mm): the "
-                f"{sz.binding} needs at least {np.ceil(sz.min_size_mm):.0f} mm, where the "
-                f"largest part is {extents.max():.0f} mm long; use a larger printer "
+                f"no size fits printer {printer.name!r} (bed {_bed(printer)} mm): {need}, "
+                f"where the largest part is {extents.max():.0f} mm long; use a larger printer "
                 "(--printer / --bed), thinner walls or a thinner pin", "bad-parameters")
         sz = sizing.choose_size(lim, printer, smaller)
     else:
@@ -182,6 +199,9 @@ def export_printable(realization: Realization, *,
             f"the parts did not fit printer {printer.name!r} (bed {_bed(printer)} mm) after "
             f"{_FIT_ROUNDS} smaller sizes (down to {sz.size_mm:.0f} mm); use --size-mm or a "
             "larger bed", "bad-parameters")
+    if grown:
+        warnings.append(f"size raised to {sz.size_mm:.0f} mm: below {floor:.0f} mm a bar "
+                        "leaning over its pin is notched through and its link falls apart")
     warnings += notch_warnings(result.assembly)
     if not fit.all():
         warnings.append(f"parts {np.flatnonzero(~fit).tolist()} do not fit the bed "
