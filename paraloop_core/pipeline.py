@@ -143,6 +143,10 @@ def solve(design: Design, *, realize: bool = True, other_loops: bool = True) -> 
     return sol
 
 
+#: Largest singularity measure (unit-free, the best of the nine loops) below which a design
+#: that is not realized is reported as nearly degenerate (random design 12: 1e-20).
+NEAR_SINGULAR = 1e-12
+
 #: Fallback attempts on the chosen loop: factors of (rho, d) after the design's own values.
 _SHRINK = ((0.5, 1.0), (0.25, 0.5))
 
@@ -195,12 +199,18 @@ def _with_realization(sol: Solution, other_loops: bool) -> Solution:
                       f"realized; realized loop {loop} with rho x{rho_f:g}, d x{d_f:g}")}
         return replace(attempt, realization=real, end_effector=ee, realization_report=report)
     last = tried[-1] if tried else {"message": "no attempt"}
+    closest = float(np.max(sol.singularity))
+    near = "" if not closest < NEAR_SINGULAR else (
+        f"every one of the nine loops comes within S = {closest:.1e} of a singular "
+        "configuration (generic motions: 1e-6 .. 1), so the motion is nearly degenerate; ")
     report = {"status": "not_found", "attempts": tried,
-              "reason": f"no collision-free realization in {len(tried)} attempts (work "
+              "reason": f"{near}no collision-free realization in {len(tried)} attempts (work "
                         f"budgets {FIRST_ATTEMPT_WORK} + {FALLBACK_WORK} each further); last: "
                         f"{last['message']}",
-              "advice": "raise realization.max_k, lower rho/d (realization.rho_fraction, "
-                        "d_fraction), fix fewer vertices, or choose another loop or mu"}
+              "advice": ("move the poses apart or choose another mu or family; " if near
+                         else "") + "raise realization.max_k, lower rho/d "
+                        "(realization.rho_fraction, d_fraction), fix fewer vertices, or choose "
+                        "another loop or mu"}
     return replace(sol, realization_report=report)
 
 

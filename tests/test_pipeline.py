@@ -197,3 +197,17 @@ def test_a_change_of_unit_changes_no_answer():
         assert np.allclose(sol.pose_parameters, base.pose_parameters, rtol=1e-9)
         assert np.allclose(sol.singularity, base.singularity, rtol=1e-6)
         assert abs(clear_s - clear) <= 1e-7 * clear
+
+
+def test_a_nearly_degenerate_motion_says_so():
+    """Random design 12: every loop comes within S ~ 1e-20 of a singular configuration; no
+    realization, and the report names that cause (not only the exhausted work budgets)."""
+    from independent.generic_designs import random_design
+
+    sol = pipeline.solve(design.design_from_dict(random_design(12, 1.0)))
+    assert sol.realization is None and np.max(sol.singularity) < pipeline.NEAR_SINGULAR
+    rep = sol.realization_report
+    assert rep["status"] == "not_found" and "nearly degenerate" in rep["reason"]
+    assert rep["advice"].startswith("move the poses apart")
+    generic = pipeline.solve(design.design_from_dict(random_design(11, 1.0)))
+    assert np.max(generic.singularity) > 1e3 * pipeline.NEAR_SINGULAR
