@@ -229,7 +229,7 @@ def test_fabrication_export_zip_download(app, page):
     button = page.get_by_role("button", name="Export all (zip)")
     button.wait_for(timeout=10_000)
     try:
-        with page.expect_download(timeout=60_000) as dl:
+        with page.expect_download(timeout=180_000) as dl:
             button.click()
     except playwright_sync.TimeoutError:
         pytest.fail(f"no download; last notifications: {app.notifications[-3:]}")
