@@ -69,6 +69,8 @@ def main(argv: list[str] | None = None) -> None:
         extra = "" if "size_mm" not in row else (
             f" size {row['size_mm']:.0f} mm, wall p5 {row['wall_mm']:.2f} mm, largest part "
             f"{row['largest_mm']:.0f} mm, min gap {row['min_gap_mm']:.3f} mm"
+            + ("" if row["walls_ok"] else "; WALLS UNDER THE PROFILE")
+            + ("" if row["fits"] else "; NOT ON THE BED")
             + (f"; {row['roomier']}" if row.get("roomier") else ""))
         print(f"{row['design']:>16}: {row['outcome']}{extra} ({row['time']:.1f} s)", flush=True)
     if pool:
