@@ -23,7 +23,7 @@ from paraloop_core.motion import fourpose, metric
 #: attempts: the design's own loop and parameters first, then each fallback. A budget, not a
 #: clock: the answer is the same on every machine, under any load and at every scale.
 FIRST_ATTEMPT_WORK = 40_000
-FALLBACK_WORK = 30_000  # random design 3063 is realized by its loop 8 with 28 099
+FALLBACK_WORK = 12_000
 RESULT_FORMAT = "paraloop-result"
 RESULT_VERSION = 1
 
