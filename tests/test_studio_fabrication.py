@@ -91,10 +91,8 @@ def test_order_presets_and_parsing():
 
 def test_carve_draws_animated_spaces_and_the_bound(sun):
     fab = sun.fabrication
-    t0 = time.perf_counter()
     click(fab.carve)
-    wait_long(sun)
-    seconds = time.perf_counter() - t0
+    wait_long(sun)  # bounded wait: a hang fails here (speed is measured in benchmarks/)
     scene = sun.scene
     assert len(scene.spaces) == 6 and all(h.visible for _, h in scene.spaces), sun.notifications
     size = size_of(sun.solution.realization, sun.state.fab)  # automatic: the printer's
@@ -105,7 +103,7 @@ def test_carve_draws_animated_spaces_and_the_bound(sun):
     assert margin > 0 and f"{margin:.3g}" in fab.bound.content
     fractions = [f for _, f in fab.progress_log]
     assert fractions[-1] == 1.0 and fractions == sorted(fractions) and len(fractions) > 5
-    assert not fab.progress.visible and seconds < 60
+    assert not fab.progress.visible
     # the spaces move with their links (motion slider)
     sun.panels.u.value = 0.37
     settle(sun)
@@ -139,10 +137,8 @@ def test_carving_is_cancelled_by_a_design_edit(tv8):
 
 
 def test_export_zip_has_parts_and_a_verified_report(tv8):
-    t0 = time.perf_counter()
     click(tv8.fabrication.export)
     wait_long(tv8)
-    seconds = time.perf_counter() - t0
     name, data = tv8.downloads[-1]
     assert name.startswith("paraloop-TV8") and name.endswith(".zip"), tv8.notifications
     with zipfile.ZipFile(io.BytesIO(data)) as zf:
@@ -162,7 +158,6 @@ def test_export_zip_has_parts_and_a_verified_report(tv8):
     assert tv8.fabrication.report == report
     text = tv8.fabrication.verification.content
     assert "ok" in text and f"{ver['min_gap_mm']:.3f} mm" in text
-    assert seconds < 60
 
 
 def test_export_failures_keep_the_design(tv8):
