@@ -34,3 +34,14 @@ def test_cap_and_thin_fins_are_found():
     assert thickness.wall_thickness(body, cap=5.0).max() == pytest.approx(5.0)  # clipped
     with pytest.raises(ValueError, match="cap > 0"):
         thickness.wall_thickness(body, cap=0.0)
+
+
+def test_micrometre_folds_are_not_walls():
+    """Two copies of a 3 mm plate 5 um apart stand in for the sliver folds of a boolean's
+    float32 mesh: the layer 5 um under a face is skipped, the plate reads 3 mm."""
+    plate = trimesh.creation.box((10.0, 20.0, 3.0))
+    folded = trimesh.util.concatenate([plate, plate.copy().apply_translation([0, 0, 0.005])])
+    d = thickness.wall_thickness(folded, cap=8.0, count=4000)
+    big = np.isclose(d, 3.0, atol=0.006)  # the two big faces' share of the area
+    assert big.mean() == pytest.approx(2 * 400 / (2 * 580), abs=0.03)
+    assert np.percentile(d, 5) > 2.9
