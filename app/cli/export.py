@@ -76,7 +76,8 @@ def cmd_export(args: argparse.Namespace) -> int:
         print(f"warning: {path}: {outputs.one_line(warning)}", file=sys.stderr)
     print(f"{path} -> {out}: {len(result.files)} files at {sz['size_mm']:.0f} mm ({sz['chosen']}; "
           f"bars {sz['bar_radius_mm']:.2f} mm, bosses {sz['boss_radius_mm']:.2f} mm, pins "
-          f"{sz['pin_radius_mm']:.2f} mm radius; {printer.name} bed); min gap "
+          f"{sz['pin_radius_mm']:.2f} mm radius; {printer.name} bed); walls "
+          f"{result.report['walls']['p5_mm']:.2f} mm (5th percentile); min gap "
           f"{ver['min_gap_mm']:.3f} mm, "
           f"continuous bound {ver['continuous_min_gap_mm']:.3f} mm, "
           f"joint clearance {ver['joint_clearance_mm']:.3f} mm")
