@@ -147,3 +147,27 @@ def test_a_link_notched_through_raises_the_size():
     assert any("notched through" in w for w in res.report["warnings"])
     assert all(p["pieces"] == 1 for p in ver["parts"]) and ver["watertight"]
     assert all(len(p.manifold.decompose()) == 1 for p in res.assembly.parts)
+
+
+def test_a_link_falling_apart_at_every_size_gets_another_realization(monkeypatch):
+    """Random design 49 had a link notched through at every size tried: the export then
+    realizes the loop again (roomier, which no longer keeps the first realization)."""
+    from test_parts import example_loop
+
+    from paraloop_core.fabrication import printable
+    from paraloop_core.realization import realize
+
+    real = realize.realize(example_loop()[0])
+    calls, fit = [], printable._fit
+
+    def first_falls_apart(r, *args):
+        calls.append(r)
+        if len(calls) == 1:
+            raise FabricationError("link 2 falls apart into 2 pieces", "falls-apart")
+        return fit(r, *args)
+
+    monkeypatch.setattr(printable, "_fit", first_falls_apart)
+    res = printable.export_printable(real, samples=16, ground=False)
+    assert calls[0] is real and calls[1] is not real and calls[1].radius > real.radius
+    assert any("falls apart at every size" in w for w in res.report["warnings"])
+    assert res.report["verification"]["ok"]

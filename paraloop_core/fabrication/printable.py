@@ -73,7 +73,7 @@ def predicted_fit(real: Realization, printer: sizing.Printer) -> tuple[float, fl
 
 
 def roomier(real: Realization, printer: sizing.Printer, fixed: dict[int, float] | None = None,
-            alternatives: Mapping[int, np.ndarray] | None = None
+            alternatives: Mapping[int, np.ndarray] | None = None, replace_it: bool = False
             ) -> tuple[Realization, str | None]:
     """``real`` if its parts are predicted to fit the bed at the smallest size meeting the
     profile (:func:`predicted_fit`, with :data:`FIT_MARGIN`), else the first realization that
@@ -82,11 +82,12 @@ def roomier(real: Realization, printer: sizing.Printer, fixed: dict[int, float] 
     and rho times 1, then times the smaller :data:`ROOMIER`; if none is, the best predicted
     one. Every
     candidate is a new, equally certified search (budget :data:`ROOMIER_WORK`); the note says
-    what was done. ``fixed`` vertices as in the design."""
+    what was done. ``fixed`` vertices as in the design. ``replace_it``: ``real`` itself cannot
+    be used (its parts fall apart), so any candidate is better than it."""
     need, fit = predicted_fit(real, printer)
-    if fit >= FIT_MARGIN:
+    if fit >= FIT_MARGIN and not replace_it:
         return real, None
-    best, best_fit, best_what, tried = real, fit, "", []
+    best, best_fit, best_what, tried = real, -np.inf if replace_it else fit, "", []
     plan = [(real.joint_factors, f, f"d and rho x{f:g}", True) for f in ROOMIER]
     plan += [(jf, f, f"loop {n}" + ("" if f == 1 else f", d and rho x{f:g}"), False)
              for f in (1.0, *ROOMIER[:-1]) for n, jf in (alternatives or {}).items()]
@@ -134,10 +135,69 @@ def export_printable(realization: Realization, *,
     factors), tried by :func:`roomier` too."""
     real, note = realization, None
     warnings: list[str] = []
-    if size_mm is None and options.get("effector") is None:
+    auto = size_mm is None
+    if auto and options.get("effector") is None:
         real, note = roomier(realization, printer, fixed, alternatives)
         if note is not None:
             warnings.append(note)
+    attempt: list[str] = []  # the notes of the realization exported
+    try:
+        result, sz, fit = _fit(real, printer, size_mm, print_in_place, ground, samples,
+                               options, progress, attempt)
+    except FabricationError as exc:
+        # a link that falls apart at every size tried: another realization, once
+        if exc.reason != "falls-apart" or not auto or options.get("effector") is not None:
+            raise
+        other, note = roomier(real, printer, fixed, alternatives, replace_it=True)
+        if other is real:
+            raise
+        real, attempt = other, []
+        warnings.append(f"{note} (a link of the first one falls apart at every size tried)")
+        result, sz, fit = _fit(real, printer, size_mm, print_in_place, ground, samples,
+                               options, progress, attempt)
+    warnings += attempt
+    warnings += notch_warnings(result.assembly)
+    if not fit.all():
+        warnings.append(f"parts {np.flatnonzero(~fit).tolist()} do not fit the bed "
+                        f"{_bed(printer)} mm at the requested {sz.size_mm:.0f} mm")
+    report = result.report
+    report["verification"] = export.verify_assembly(result.assembly, samples,
+                                                    progress=export.stage(progress, 0.5, 1.0))
+    report["sizing"] = {
+        "size_mm": sz.size_mm, "chosen": "auto" if auto else "requested",
+        "bar_radius_mm": sz.bar_radius_mm, "boss_radius_mm": sz.boss_radius_mm,
+        "pin_radius_mm": sz.pin_radius_mm, "min_size_mm": sz.min_size_mm,
+        "binding_constraint": sz.binding, "printer": printer.name, "bed_mm": printer.bed_mm,
+        "wall_mm": printer.wall_mm, "fits_bed": fit.tolist(), "realization": note,
+        "realization_radius": real.radius, "realization_separation": real.separation}
+    report["warnings"] = warnings
+    files = [(n, b) for n, b in result.files if n != "report.json"]
+    meshes = {p.name: export.part_trimesh(p) for p in result.assembly.parts}
+    walls = {n: thickness.thickness_summary(m, printer.wall_mm) for n, m in meshes.items()}
+    report["walls"] = {"wall_mm": printer.wall_mm, "ok": all(w["ok"] for w in walls.values()),
+                       "p5_mm": min(w["p5_mm"] for w in walls.values()), "parts": walls,
+                       "method": "chord along the inward normal at 2000 area-uniform surface "
+                                 "points per part (exact on the mesh; the percentile is a "
+                                 "sampling estimate), measured up to 4 walls"}
+    if not report["walls"]["ok"]:
+        thin = [n for n, w in walls.items() if not w["ok"]]
+        warnings.append(f"walls under {printer.wall_mm:g} mm on more than 5 % of the surface of "
+                        f"{', '.join(thin)} (5th percentile {report['walls']['p5_mm']:.2f} mm)")
+    layout = guide.bed_layout(meshes, printer.bed_mm, print_in_place)
+    settings = {"printer profile": f"{printer.name} (walls >= {printer.wall_mm:g} mm, pin "
+                f"radius >= {printer.pin_radius_mm:g} mm)", "size": f"{sz.size_mm:.0f} mm "
+                f"({report['scale_mm_per_unit']:.4g} mm per design unit)"}
+    files += guide.guide_pages(result.assembly, meshes, layout, printer.bed_mm, settings)
+    return replace(result, files=files + [("report.json", export.report_json(report))])
+
+
+def _fit(real: Realization, printer: sizing.Printer, size_mm: float | None,
+         print_in_place: bool, ground: bool, samples: int, options: dict,
+         progress: export.Progress | None, warnings: list[str]
+         ) -> tuple[ExportResult, sizing.Sizing, np.ndarray]:
+    """Parts of ``real`` built (not verified) at the requested size, or automatically at the
+    size that meets the profile, keeps every link in one piece and fits the bed (module
+    docstring); ``(result, sizing, fits_bed mask)``. Notes go to ``warnings``."""
     lim = sizing.limits(real.points, real.pairs, real.pair_lower, real.joint_lower)
     auto = size_mm is None
     sz = sizing.choose_size(lim, printer, size_mm)
@@ -202,39 +262,7 @@ def export_printable(realization: Realization, *,
     if grown:
         warnings.append(f"size raised to {sz.size_mm:.0f} mm: below {floor:.0f} mm a bar "
                         "leaning over its pin is notched through and its link falls apart")
-    warnings += notch_warnings(result.assembly)
-    if not fit.all():
-        warnings.append(f"parts {np.flatnonzero(~fit).tolist()} do not fit the bed "
-                        f"{_bed(printer)} mm at the requested {sz.size_mm:.0f} mm")
-    report = result.report
-    report["verification"] = export.verify_assembly(result.assembly, samples,
-                                                    progress=export.stage(progress, 0.5, 1.0))
-    report["sizing"] = {
-        "size_mm": sz.size_mm, "chosen": "auto" if auto else "requested",
-        "bar_radius_mm": sz.bar_radius_mm, "boss_radius_mm": sz.boss_radius_mm,
-        "pin_radius_mm": sz.pin_radius_mm, "min_size_mm": sz.min_size_mm,
-        "binding_constraint": sz.binding, "printer": printer.name, "bed_mm": printer.bed_mm,
-        "wall_mm": printer.wall_mm, "fits_bed": fit.tolist(), "realization": note,
-        "realization_radius": real.radius, "realization_separation": real.separation}
-    report["warnings"] = warnings
-    files = [(n, b) for n, b in result.files if n != "report.json"]
-    meshes = {p.name: export.part_trimesh(p) for p in result.assembly.parts}
-    walls = {n: thickness.thickness_summary(m, printer.wall_mm) for n, m in meshes.items()}
-    report["walls"] = {"wall_mm": printer.wall_mm, "ok": all(w["ok"] for w in walls.values()),
-                       "p5_mm": min(w["p5_mm"] for w in walls.values()), "parts": walls,
-                       "method": "chord along the inward normal at 2000 area-uniform surface "
-                                 "points per part (exact on the mesh; the percentile is a "
-                                 "sampling estimate), measured up to 4 walls"}
-    if not report["walls"]["ok"]:
-        thin = [n for n, w in walls.items() if not w["ok"]]
-        warnings.append(f"walls under {printer.wall_mm:g} mm on more than 5 % of the surface of "
-                        f"{', '.join(thin)} (5th percentile {report['walls']['p5_mm']:.2f} mm)")
-    layout = guide.bed_layout(meshes, printer.bed_mm, spec.print_in_place)
-    settings = {"printer profile": f"{printer.name} (walls >= {printer.wall_mm:g} mm, pin "
-                f"radius >= {printer.pin_radius_mm:g} mm)", "size": f"{sz.size_mm:.0f} mm "
-                f"({report['scale_mm_per_unit']:.4g} mm per design unit)"}
-    files += guide.guide_pages(result.assembly, meshes, layout, printer.bed_mm, settings)
-    return replace(result, files=files + [("report.json", export.report_json(report))])
+    return result, sz, fit
 
 
 def notch_warnings(asm: Assembly) -> list[str]:
