@@ -6,6 +6,7 @@ UI handlers only call the methods here (cheap, lock-protected); the worker reads
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import os
 import threading
 import time
@@ -28,12 +29,19 @@ def user_data_dir() -> Path:
 
 
 def autosave_path_for(design_path: Path | None, name: str) -> Path:
-    """``<stem>.autosave.json`` next to a writable opened design, else in the user data folder
-    (``autosave/<name>.json``)."""
-    if design_path is not None and os.access(design_path.parent, os.W_OK):
-        return design_path.with_name(design_path.stem + ".autosave.json")
-    safe = "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in name) or "untitled"
-    return user_data_dir() / "autosave" / f"{safe}.json"
+    """The autosave file in the user data folder, never beside the design (a repository or a
+    read-only folder stays clean): ``autosave/<stem>-<hash of the resolved path>.json`` for an
+    opened file, so two files with one name or one design name never share it, else
+    ``autosave/<name>.json``."""
+    folder = user_data_dir() / "autosave"
+    if design_path is not None:
+        key = hashlib.sha1(str(Path(design_path).resolve()).encode()).hexdigest()[:12]
+        return folder / f"{_safe(Path(design_path).stem)}-{key}.json"
+    return folder / f"{_safe(name)}.json"
+
+
+def _safe(text: str) -> str:
+    return "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in text) or "untitled"
 
 
 def absolute_mesh(design: Design) -> Design:

@@ -20,10 +20,14 @@ DESIGN = Path(__file__).resolve().parent.parent / "assets" / "designs" / "tv8.js
 
 
 def test_autosave_location(tmp_path, monkeypatch):
-    assert autosave_path_for(tmp_path / "a.json", "x") == tmp_path / "a.autosave.json"
+    """Never beside the design; one file per opened path (two a.json never share one)."""
     monkeypatch.setenv("XDG_DATA_HOME", str(tmp_path / "data"))
-    assert autosave_path_for(None, "my design!") == \
-        tmp_path / "data" / "paraloop" / "autosave" / "my_design_.json"
+    folder = tmp_path / "data" / "paraloop" / "autosave"
+    one, two = autosave_path_for(tmp_path / "a.json", "x"), autosave_path_for(
+        tmp_path / "sub" / "a.json", "x")
+    assert one.parent == two.parent == folder and one != two
+    assert one.name.startswith("a-") and one == autosave_path_for(tmp_path / "a.json", "y")
+    assert autosave_path_for(None, "my design!") == folder / "my_design_.json"
 
 
 def test_state_history():
