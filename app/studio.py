@@ -133,6 +133,8 @@ class Studio:
             self.notify(f"Cannot load {upload.name}", f"{exc} (the design is unchanged)",
                         error=True)
             return
+        # its own autosave: the opened file's one keeps that file's unsaved work
+        self.state.autosave_path = autosave_path_for(None, f"upload-{Path(upload.name).stem}")
         self.state.commit(design)
         self.request(FULL, sync=True)
         self.notify("Design loaded", upload.name)

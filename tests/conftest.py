@@ -47,3 +47,9 @@ def assert_generic(c: np.ndarray) -> None:
     """Skip-free guard for property tests: random cubics are generic with probability 1."""
     f = factor.all_factorizations_batch(c)
     assert np.all(f.ok), "random cubic unexpectedly non-generic"
+
+
+@pytest.fixture(autouse=True)
+def _user_data_in_tmp(tmp_path_factory, monkeypatch):
+    """Tests never write into the user's data folder (studio autosaves of uploaded designs)."""
+    monkeypatch.setenv("XDG_DATA_HOME", str(tmp_path_factory.getbasetemp() / "xdg"))

@@ -295,8 +295,12 @@ def test_save_export_and_upload(studio, tmp_path):
     d = design_mod.design_to_dict(before)
     d["name"] = "uploaded"
     d["poses"][3]["position"] = [0.7, 0.5, 0.8]
+    opened = studio.state.autosave_path
     upload(studio, "good.json", json.dumps(d).encode())
     assert studio.state.design.name == "uploaded" and studio.panels.name.value == "uploaded"
+    # its own autosave: the opened file's unsaved work is not overwritten
+    assert studio.state.autosave_path != opened
+    assert studio.state.autosave_path.name == "upload-good.json"
     assert np.allclose(studio.scene.gizmos[3].position, [0.7, 0.5, 0.8])
     assert studio.error is None and studio.solution.design.name == "uploaded"
 
