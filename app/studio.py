@@ -253,7 +253,10 @@ class Studio:
         if full and not note:
             note = realization_note(sol)
         kind = "full update" if full else "preview"
-        self.panels.status.content = f"**Status:** ok ({kind} {ms:.0f} ms). {note}"
+        # "ok" only when there is a loop to show (or none was asked for)
+        word = "⚠ solved, not realized" if full and sol.realization is None and \
+            sol.design.realization.enabled else "ok"
+        self.panels.status.content = f"**Status:** {word} ({kind} {ms:.0f} ms). {note}"
 
     def _play(self) -> None:
         last = time.monotonic()

@@ -138,6 +138,24 @@ def test_locked_pose_ignores_drags(studio):
     assert not studio.panels.locks[3].value and studio.notifications[-1][2]
 
 
+def test_status_is_not_ok_without_a_realization(studio, monkeypatch):
+    """A solved design whose loop is not realized: the status says so, not "ok"."""
+    from paraloop_core import pipeline
+
+    monkeypatch.setattr(pipeline, "FIRST_ATTEMPT_WORK", 1)
+    monkeypatch.setattr(pipeline, "FALLBACK_WORK", 1)
+    p = studio.state.design.poses[3]
+    gizmo(studio, 3, position=np.asarray(p.position) + 0.013)
+    assert studio.solution.realization is None and studio.error is None
+    text = studio.panels.status.content
+    assert "not realized" in text and "ok" not in text.split("(")[0] and "budget" in text
+    monkeypatch.undo()
+    click(studio.panels.undo)
+    settle(studio)
+    assert studio.solution.realization is not None and "**Status:** ok" in \
+        studio.panels.status.content
+
+
 def test_failure_keeps_last_valid_design(studio):
     valid = studio.solution
     s0 = studio.state.design.poses[0]
