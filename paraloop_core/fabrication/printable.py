@@ -142,8 +142,8 @@ def export_printable(realization: Realization, *,
             warnings.append(note)
     attempt: list[str] = []  # the notes of the realization exported
     try:
-        result, sz, fit = _fit(real, printer, size_mm, print_in_place, ground, samples,
-                               options, progress, attempt)
+        result, sz, fit, walls = _fit(real, printer, size_mm, print_in_place, ground,
+                                      samples, options, progress, attempt)
     except FabricationError as exc:
         # a link that falls apart at every size tried: another realization, once
         if exc.reason != "falls-apart" or not auto or options.get("effector") is not None:
@@ -153,8 +153,8 @@ def export_printable(realization: Realization, *,
             raise
         real, attempt = other, []
         warnings.append(f"{note} (a link of the first one falls apart at every size tried)")
-        result, sz, fit = _fit(real, printer, size_mm, print_in_place, ground, samples,
-                               options, progress, attempt)
+        result, sz, fit, walls = _fit(real, printer, size_mm, print_in_place, ground,
+                                      samples, options, progress, attempt)
     warnings += attempt
     warnings += notch_warnings(result.assembly)
     if not fit.all():
@@ -173,14 +173,9 @@ def export_printable(realization: Realization, *,
     report["warnings"] = warnings
     files = [(n, b) for n, b in result.files if n != "report.json"]
     meshes = {p.name: export.part_trimesh(p) for p in result.assembly.parts}
-    walls = {n: thickness.thickness_summary(m, printer.wall_mm) for n, m in meshes.items()}
-    report["walls"] = {"wall_mm": printer.wall_mm, "ok": all(w["ok"] for w in walls.values()),
-                       "p5_mm": min(w["p5_mm"] for w in walls.values()), "parts": walls,
-                       "method": "chord along the inward normal at 2000 area-uniform surface "
-                                 "points per part (exact on the mesh; the percentile is a "
-                                 "sampling estimate), measured up to 4 walls"}
-    if not report["walls"]["ok"]:
-        thin = [n for n, w in walls.items() if not w["ok"]]
+    report["walls"] = walls
+    if not walls["ok"]:
+        thin = [n for n, w in walls["parts"].items() if not w["ok"]]
         warnings.append(f"walls under {printer.wall_mm:g} mm on more than 5 % of the surface of "
                         f"{', '.join(thin)} (5th percentile {report['walls']['p5_mm']:.2f} mm)")
     layout = guide.bed_layout(meshes, printer.bed_mm, print_in_place)
@@ -194,15 +189,17 @@ def export_printable(realization: Realization, *,
 def _fit(real: Realization, printer: sizing.Printer, size_mm: float | None,
          print_in_place: bool, ground: bool, samples: int, options: dict,
          progress: export.Progress | None, warnings: list[str]
-         ) -> tuple[ExportResult, sizing.Sizing, np.ndarray]:
+         ) -> tuple[ExportResult, sizing.Sizing, np.ndarray, dict]:
     """Parts of ``real`` built (not verified) at the requested size, or automatically at the
-    size that meets the profile, keeps every link in one piece and fits the bed (module
-    docstring); ``(result, sizing, fits_bed mask)``. Notes go to ``warnings``."""
+    size that meets the profile, keeps every link in one piece with its walls and fits the
+    bed (module docstring); ``(result, sizing, fits_bed mask, walls_report)``. Notes go to
+    ``warnings``."""
     lim = sizing.limits(real.points, real.pairs, real.pair_lower, real.joint_lower)
     auto = size_mm is None
     sz = sizing.choose_size(lim, printer, size_mm)
-    floor, grown = sz.min_size_mm, 0  # no smaller size is tried (the profile, or a link fell
-    # apart there)
+    # no smaller size is tried: the profile's minimum, or where a link fell apart or a wall
+    # was thin (a bar notched at a joint: the pins grow with the size, the bosses not)
+    floor, grown, why = sz.min_size_mm, 0, ""
     for _ in range(_FIT_ROUNDS + _GROW_ROUNDS + 2):  # sizes tried: first, larger, smaller
         spec = PartSpec(size_mm=sz.size_mm, clearance_mm=printer.clearance_mm,
                         rho_mm=sz.bar_radius_mm, boss_radius_mm=sz.boss_radius_mm,
@@ -225,13 +222,18 @@ def _fit(real: Realization, printer: sizing.Printer, size_mm: float | None,
                 result = export.export_parts(real.joint_factors, real.points, real.radius,
                                              ground=False, **build)
         except FabricationError as exc:
-            # a bar notched through at a joint: the pins grow with the size, the bosses not
             if exc.reason != "falls-apart" or not auto or grown == _GROW_ROUNDS:
                 raise
-            floor, grown = sz.size_mm * _GROW, grown + 1
+            floor, grown, why = sz.size_mm * _GROW, grown + 1, "a link falls apart"
             sz = sizing.choose_size(lim, printer, floor)
             continue
-        extents = part_extents(result)
+        walls, extents = walls_report(result, printer), part_extents(result)
+        if not walls["ok"] and auto and grown < _GROW_ROUNDS and \
+                sizing.fit_factor(extents, printer).min() >= _GROW:  # only while on the bed
+            floor, grown = sz.size_mm * _GROW, grown + 1
+            why = f"walls are under {printer.wall_mm:g} mm ({walls['p5_mm']:.2f} mm)"
+            sz = sizing.choose_size(lim, printer, floor)
+            continue
         fit = sizing.fits_bed(extents, printer)
         column = result.report.get("grounding", {}).get("link")
         if column is not None and not fit.all() and set(np.flatnonzero(~fit)) == {column}:
@@ -247,8 +249,7 @@ def _fit(real: Realization, printer: sizing.Printer, size_mm: float | None,
         smaller = sz.size_mm * min(float(sizing.fit_factor(extents[~fit], printer).min()), 0.99)
         if smaller < floor:
             need = f"the {sz.binding} needs at least {np.ceil(sz.min_size_mm):.0f} mm" \
-                if floor == sz.min_size_mm else \
-                f"below {floor:.0f} mm a bar leaning over its pin is notched through"
+                if floor == sz.min_size_mm else f"below {floor:.0f} mm {why}"
             raise FabricationError(
                 f"no size fits printer {printer.name!r} (bed {_bed(printer)} mm): {need}, "
                 f"where the largest part is {extents.max():.0f} mm long; use a larger printer "
@@ -260,9 +261,20 @@ def _fit(real: Realization, printer: sizing.Printer, size_mm: float | None,
             f"{_FIT_ROUNDS} smaller sizes (down to {sz.size_mm:.0f} mm); use --size-mm or a "
             "larger bed", "bad-parameters")
     if grown:
-        warnings.append(f"size raised to {sz.size_mm:.0f} mm: below {floor:.0f} mm a bar "
-                        "leaning over its pin is notched through and its link falls apart")
-    return result, sz, fit
+        warnings.append(f"size raised to {sz.size_mm:.0f} mm: below {floor:.0f} mm {why} (a "
+                        "bar leaning over its pin is notched at the joint)")
+    return result, sz, fit, walls
+
+
+def walls_report(result: ExportResult, printer: sizing.Printer) -> dict:
+    """JSON-ready local wall thickness of every part (:mod:`thickness`) against the profile."""
+    walls = {p.name: thickness.thickness_summary(export.part_trimesh(p), printer.wall_mm)
+             for p in result.assembly.parts}
+    return {"wall_mm": printer.wall_mm, "ok": all(w["ok"] for w in walls.values()),
+            "p5_mm": min(w["p5_mm"] for w in walls.values()), "parts": walls,
+            "method": "chord along the inward normal at 2000 area-uniform surface points per "
+                      "part (exact on the mesh; the percentile is a sampling estimate), "
+                      "measured up to 4 walls"}
 
 
 def notch_warnings(asm: Assembly) -> list[str]:
