@@ -297,7 +297,7 @@ def build_assembly(joint_factors: np.ndarray, points: np.ndarray, radius: float,
         if bodies is not None and bodies[i] is not None:
             # The bar always stays (it ties the carved shape to the joints); carved islands
             # not touching it would print as loose pieces, so they are dropped.
-            carved = _mesh_manifold(bodies[i][0] * scale, bodies[i][1], f"link {i}")
+            carved = _mesh_manifold(bodies[i][0] * scale, bodies[i][1])
             touching = [c for c in carved.decompose() if not (c ^ body).is_empty()]
             body = m3d.Manifold.batch_boolean([body, *touching], m3d.OpType.Add)
             if touching:
@@ -374,12 +374,13 @@ def _body_capsules(body: m3d.Manifold, p0: np.ndarray, p1: np.ndarray,
     return out
 
 
-def _mesh_manifold(vertices: np.ndarray, faces: np.ndarray, name: str) -> m3d.Manifold:
+def _mesh_manifold(vertices: np.ndarray, faces: np.ndarray) -> m3d.Manifold:
+    """A carved body's mesh as a manifold; empty where manifold3d refuses it or nothing is
+    left (a space carved thinner than float32 resolves): the link is then its bar alone."""
     mesh = m3d.Mesh(np.ascontiguousarray(vertices, np.float32),
                     np.ascontiguousarray(faces, np.uint32))
     man = m3d.Manifold(mesh)
-    _check_manifold(man, name)
-    return man
+    return man if man.status() == m3d.Error.NoError else m3d.Manifold()
 
 
 def _check_manifold(man: m3d.Manifold, name: str) -> None:
