@@ -78,8 +78,8 @@ def sizing_of(real: Any, fab: FabSettings) -> sizing.Sizing:
     """Size and radii for the generic profile (:func:`sizing.choose_size`): at the panel's
     size, or with size 0 the automatic one (before any bed-fit shrink). Raises
     FabricationError when the given size is below the profile's minimum."""
-    lim = sizing.limits(real.points, real.pairs, real.pair_lower, real.joint_lower)
-    return sizing.choose_size(lim, printer_of(fab), fab.size_mm if fab.size_mm > 0 else None)
+    return sizing.choose_size(sizing.realization_limits(real), printer_of(fab),
+                              fab.size_mm if fab.size_mm > 0 else None)
 
 
 def size_of(real: Any, fab: FabSettings) -> float:

@@ -50,8 +50,7 @@ FIT_MARGIN = 1.05
 
 def min_size_mm(real: Realization, printer: sizing.Printer) -> float:
     """Smallest size (mm) at which the parts of ``real`` meet ``printer``'s profile."""
-    lim = sizing.limits(real.points, real.pairs, real.pair_lower, real.joint_lower)
-    return sizing.choose_size(lim, printer).min_size_mm
+    return sizing.choose_size(sizing.realization_limits(real), printer).min_size_mm
 
 
 def predicted_fit(real: Realization, printer: sizing.Printer) -> tuple[float, float]:
@@ -61,8 +60,8 @@ def predicted_fit(real: Realization, printer: sizing.Printer) -> tuple[float, fl
     of ``mid(E_{i-1}, S_i), S_i, E_i, mid(E_i, S_{i+1})`` grown by the boss radius; an
     estimate for choosing a realization (columns and carved bodies are not in it), the built
     parts are measured again."""
-    lim = sizing.limits(real.points, real.pairs, real.pair_lower, real.joint_lower)
-    sz = sizing.choose_size(lim, printer, max(min_size_mm(real, printer), 1e-9))
+    lim = sizing.realization_limits(real)
+    sz = sizing.choose_size(lim, printer, sizing.choose_size(lim, printer).min_size_mm)
     pts = np.asarray(real.points, float) * sz.scale
     s, e = pts[0::2], pts[1::2]
     link = np.stack([(np.roll(e, 1, axis=0) + s) / 2, s, e, (e + np.roll(s, -1, axis=0)) / 2], 1)
@@ -87,7 +86,8 @@ def roomier(real: Realization, printer: sizing.Printer, fixed: dict[int, float] 
     need, fit = predicted_fit(real, printer)
     if fit >= FIT_MARGIN and not replace_it:
         return real, None
-    best, best_fit, best_what, tried = real, -np.inf if replace_it else fit, "", []
+    best, best_size, best_fit, best_what = real, need, -np.inf if replace_it else fit, ""
+    tried = []
     plan = [(real.joint_factors, f, f"d and rho x{f:g}", True) for f in ROOMIER]
     plan += [(jf, f, f"loop {n}" + ("" if f == 1 else f", d and rho x{f:g}"), False)
              for f in (1.0, *ROOMIER[:-1]) for n, jf in (alternatives or {}).items()]
@@ -102,7 +102,7 @@ def roomier(real: Realization, printer: sizing.Printer, fixed: dict[int, float] 
         size, fit = predicted_fit(r, printer)
         tried.append(f"{what}: {size:.0f} mm, fit {fit:.2f}")
         if fit > best_fit:
-            best, best_fit, best_what = r, fit, what
+            best, best_size, best_fit, best_what = r, size, fit, what
         if fit >= FIT_MARGIN:
             break
     if best is real:
@@ -110,7 +110,7 @@ def roomier(real: Realization, printer: sizing.Printer, fixed: dict[int, float] 
                       f"smallest printable size {need:.0f} mm, and no roomier one was found "
                       f"({'; '.join(tried)})")
     return best, (f"realized again for printing with {best_what} (the design's realization "
-                  f"needs {need:.0f} mm, this one {predicted_fit(best, printer)[0]:.0f} mm, "
+                  f"needs {need:.0f} mm, this one {best_size:.0f} mm, "
                   f"predicted bed fit {best_fit:.2f}); certified like the first")
 
 
@@ -194,7 +194,7 @@ def _fit(real: Realization, printer: sizing.Printer, size_mm: float | None,
     size that meets the profile, keeps every link in one piece with its walls and fits the
     bed (module docstring); ``(result, sizing, fits_bed mask, walls_report)``. Notes go to
     ``warnings``."""
-    lim = sizing.limits(real.points, real.pairs, real.pair_lower, real.joint_lower)
+    lim = sizing.realization_limits(real)
     auto = size_mm is None
     sz = sizing.choose_size(lim, printer, size_mm)
     # no smaller size is tried: the profile's minimum, or where a link fell apart or a wall

@@ -23,6 +23,7 @@ re-verifies the built parts over the cycle.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -110,6 +111,11 @@ def limits(points: np.ndarray, pairs: np.ndarray, pair_lower: np.ndarray,
     return Limits(bb, low[e[:, 0] != e[:, 1]].min(initial=np.inf),
                   low[~e[:, 0] & ~e[:, 1]].min(initial=np.inf),
                   float(np.max(np.ptp(pts, axis=0))), float(pins.min()))
+
+
+def realization_limits(real: Any) -> Limits:
+    """:func:`limits` of a ``realize.Realization`` (its points, pairs and proven bounds)."""
+    return limits(real.points, real.pairs, real.pair_lower, real.joint_lower)
 
 
 def choose_size(lim: Limits, printer: Printer, size_mm: float | None = None) -> Sizing:
