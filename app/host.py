@@ -10,6 +10,7 @@ from typing import Any, Protocol
 
 import viser
 
+from app.jobs import Jobs
 from app.scene import SceneView
 from app.state import StudioState
 from paraloop_core.design import Pose
@@ -22,17 +23,25 @@ class StudioHost(Protocol):
     server: viser.ViserServer
     state: StudioState
     scene: SceneView
+    jobs: Jobs  # long jobs (fit, carve, export) and *Cancel job*
     solution: Solution | None  # last valid solution (on screen)
     error: str | None  # why the current design has no solution
 
     def request(self, level: int, sync: bool = False) -> None:
         """Ask the worker for an update of ``level`` (``app.worker`` FRAME/PREVIEW/FULL)."""
 
-    def notify(self, title: str, body: str, error: bool = False) -> None:
-        """Show a notification in every connected browser."""
+    def notify(self, title: str, body: str, error: bool = False, cause: str | None = None
+               ) -> None:
+        """Show a notification in every connected browser (one per ``cause``)."""
 
     def send_file(self, client: Any, name: str, data: bytes) -> None:
         """Send a download to one browser client."""
+
+    def panels_order(self) -> float:
+        """GUI order of the status line (offers are placed just below it)."""
+
+    def reframe(self) -> None:
+        """Frame the camera after the next full update."""
 
     def new_pose(self) -> Pose:
         """A sensible new target pose for *Add pose*."""

@@ -56,18 +56,19 @@ class Plots:
 
     def __init__(self, server: viser.ViserServer) -> None:
         gui = server.gui
-        with gui.add_folder("Plots", expand_by_default=False):
+        with gui.add_folder("Plots"):
+            self.clearance = _chart(
+                gui, "Clearance of the realized loop over the cycle", "cycle position",
+                "distance (design units)",
+                (uplot.Series(label="u"), _series("clearance", "#1f77b4"),
+                 _series("2 rho", "#7f7f7f")), visible=False)
             self.angles = _chart(
                 gui, "Joint angles vs driving joint", "joint 0 (deg)", "deg",
                 (uplot.Series(label="joint 0"),
                  *(_series(f"joint {k}", c) for k, c in enumerate(_JOINT_COLORS, 1))))
             self.singular = _chart(
-                gui, "Singularity measure over the cycle", "u", "S",
+                gui, "Singularity measure over the cycle", "cycle position", "S",
                 (uplot.Series(label="u"), _series("S(t)", "#d62728")))
-            self.clearance = _chart(
-                gui, "Clearance of the realized loop", "u", "distance",
-                (uplot.Series(label="u"), _series("clearance", "#1f77b4"),
-                 _series("2 rho", "#7f7f7f")), visible=False)
 
     def update(self, sol: Any) -> None:
         """Recompute the charts of ``sol``'s selected loop."""

@@ -1,11 +1,13 @@
 """Drawing the design and its solution into the viser scene (called by the worker only,
 inside ``server.atomic()``).
 
-Scene tree: ``/targets/i`` gizmos (+ ``/frame``, ``/label``), ``/motion/path`` trajectory,
+Scene tree: ``/targets/i`` gizmos (+ ``/frame``), ``/target_labels/i`` their labels (world
+frame, spread apart), ``/motion/path`` trajectory,
 ``/motion/frames`` sampled moving frames, ``/motion/current`` the animated frame with its
 ``/ellipsoid``, ``/factorizations`` six factorizations' axes (Fig. 5 colours, home pose),
 ``/loop/axes`` the selected loop's axes and ``/loop/bars``, ``/loop/joints`` the linkage,
-``/loop/spaces/i`` the carved design spaces (moving with their links).
+``/loop/ghost`` the last realized linkage while the design has none, ``/loop/spaces/i`` the
+carved design spaces (moving with their links).
 """
 
 from __future__ import annotations
@@ -37,7 +39,7 @@ PATH_COLOR = (40, 40, 70)
 #: View layers (GUI checkboxes) and the scene handles they show.
 LAYERS = {"Trajectory": ("path",), "Moving frames": ("frames",),
           "Inertia ellipsoid": ("ellipsoid",), "Factorization axes": ("facts",),
-          "Loop axes": ("axes",), "Linkage": ("bars", "joints", "effector")}
+          "Loop axes": ("axes",), "Linkage": ("bars", "joints", "effector", "ghost")}
 #: The carved design spaces' layer (toggled in the Fabrication panel) and their colours.
 SPACES_LAYER = "Design spaces"
 SPACE_COLORS = np.vstack([LINK_COLORS[:1], FACTOR_COLORS[:5]])
@@ -52,6 +54,26 @@ def design_scale(design: Design) -> float:
     """Characteristic length: the diagonal of the targets' bounding box (at least 1e-3)."""
     pos = design.pose_array[0]
     return max(float(np.linalg.norm(pos.max(0) - pos.min(0))), 1e-3)
+
+
+def label_positions(targets: np.ndarray, scale: float) -> np.ndarray:
+    """Label anchors ``(N, 3)`` for target positions ``(N, 3)``: pushed out from the targets'
+    centroid by 0.12 ``scale``, then spread so that no two are closer than 0.12 ``scale``
+    (a few relaxation steps; close or coincident targets get staggered heights)."""
+    p = np.asarray(targets, float)
+    away = p - p.mean(0)
+    norm = np.linalg.norm(away, axis=1, keepdims=True)
+    away = np.where(norm > 1e-9 * scale, away / np.maximum(norm, 1e-300), [0.0, 0.0, 1.0])
+    gap = 0.12 * scale
+    out = p + gap * away + np.arange(len(p))[:, None] * [0.0, 0.0, 1e-3 * scale]
+    for _ in range(20):
+        diff = out[:, None] - out[None]
+        dist = np.linalg.norm(diff, axis=-1) + np.eye(len(p)) * gap
+        push = np.clip(gap - dist, 0.0, None) / np.maximum(dist, 1e-9 * scale)
+        if not push.any():
+            break
+        out = out + 0.5 * np.einsum("ij,ijk->ik", push, diff)
+    return out
 
 
 def z_to(d: np.ndarray) -> np.ndarray:
@@ -97,6 +119,11 @@ class SceneView:
         self.spaces: list[tuple[int, Any]] = []  # (link, mesh handle) of carved spaces
         self.spaces_jf: np.ndarray | None = None  # the loop they were carved for
         self.end_link: np.ndarray | None = None  # (4, 3) S_3, L, R, E_3 with an end-effector
+        # the last realized linkage (joint factors, home points, radius) and, while the design
+        # on screen has no realization, the same shown faintly (a "ghost")
+        self.last_real: tuple[np.ndarray, np.ndarray, float] | None = None
+        self.ghost: tuple[np.ndarray, np.ndarray, float] | None = None
+        self.target_positions = np.zeros((0, 3))
 
     # --- targets ----------------------------------------------------------------------------
     def set_targets(self, design: Design) -> None:
@@ -114,8 +141,7 @@ class SceneView:
                     position=pose.position, wxyz=pose.wxyz)
                 scene.add_frame(f"/targets/{i}/frame", axes_length=0.12 * self.scale,
                                 axes_radius=0.006 * self.scale)
-                self.labels.append(scene.add_label(f"/targets/{i}/label", f"S{i}",
-                                                   position=(0.0, 0.0, 0.08 * self.scale)))
+                self.labels.append(scene.add_label(f"/target_labels/{i}", f"S{i}"))
                 g.on_update(self._gizmo_callback(i))
                 self.gizmos.append(g)
         for i, (g, pose) in enumerate(zip(self.gizmos, design.poses, strict=True)):
@@ -124,6 +150,30 @@ class SceneView:
             g.active_axes = (not locked,) * 3
             g.disable_rotations = locked
             g.opacity = 0.25 if locked else 1.0
+        self.place_labels(design.pose_array[0])
+
+    def place_labels(self, positions: np.ndarray) -> None:
+        """Move the target labels next to the targets at ``positions`` ``(N, 3)``."""
+        self.target_positions = np.asarray(positions, float)
+        if len(self.labels) == len(positions):
+            for label, at in zip(self.labels, label_positions(positions, self.scale),
+                                 strict=True):
+                label.position = at
+
+    def extent_points(self) -> np.ndarray:
+        """World points ``(N, 3)`` that framing must show: targets, trajectory, the linkage
+        (or its ghost) over the cycle."""
+        parts = [self.target_positions.reshape(-1, 3)]
+        if "path" in self.handles:
+            parts.append(np.asarray(self.handles["path"].points, float).reshape(-1, 3))
+        t = poly.param_to_t(np.linspace(0.0, 1.0, 33)[:-1])
+        for jf, home in ((self.joint_factors, self.points_home),
+                         (None, None) if self.ghost is None else self.ghost[:2]):
+            if jf is not None and home is not None:
+                links = np.repeat(loops.link_poses(jf, t), 2, axis=1)  # (T, 12, 8)
+                parts.append(dq.transform_points(links, home).reshape(-1, 3))
+        pts = np.concatenate(parts)
+        return pts[np.all(np.isfinite(pts), axis=1)]
 
     def _rescale(self, design: Design) -> None:
         """New characteristic length: grid, initial camera; sized handles are recreated."""
@@ -133,10 +183,6 @@ class SceneView:
             h.remove()
         self.gizmos, self.labels, self.handles = [], [], {}
         self.scale = design_scale(design)
-        center = design.pose_array[0].mean(0)
-        cam = self.server.initial_camera
-        cam.look_at = center
-        cam.position = center + self.scale * np.array([0.8, -1.1, 0.7])
         low = design.pose_array[0][:, 2].min() - 0.25 * self.scale
         self.server.scene.add_grid("/grid", width=3 * self.scale, height=3 * self.scale,
                                    cell_size=self.scale / 8, position=(0.0, 0.0, low))
@@ -176,6 +222,7 @@ class SceneView:
             h["ellipsoid"] = scene.add_mesh_simple(
                 "/motion/current/ellipsoid", verts, _SPHERE.faces, color=(120, 160, 230),
                 wireframe=True, opacity=0.5, cast_shadow=False, receive_shadow=False)
+        self.place_labels(sol.design.pose_array[0])
         rank = np.argsort(np.argsort(poly.t_to_param(sol.pose_parameters)))
         for i, label in enumerate(self.labels):
             lock = " (locked)" if i in sol.design.locked else ""
@@ -220,9 +267,11 @@ class SceneView:
         self.joint_factors = loop.joint_factors
         self.center = sol.design.pose_array[0].mean(0)
         real = sol.realization
+        self.ghost = None if real is not None else self.last_real
         if real is not None:
             self.points_home = np.asarray(real.points, float)
             self.bar_radius = float(real.radius)
+            self.last_real = (loop.joint_factors, self.points_home, self.bar_radius)
         else:  # the shortest closed polyline on the axes (eq. 11): S_i = E_{i-1}
             try:
                 e = polyline.shortest_polyline(loop.joint_factors)[1]
@@ -285,6 +334,7 @@ class SceneView:
             h["effector"].position, h["effector"].wxyz = pose, wxyz
         bar_p, bar_q, bar_s = self._cylinders(starts, ends, r, r)
         joint_p, joint_q, joint_s = self._cylinders(e, s_next, 1.8 * r, 6.0 * r, axes[:, :3])
+        self._draw_ghost(t, thickness)
         if "bars" not in h:
             h["axes"] = scene.add_line_segments("/loop/axes", axis_segs, self.loop_colors,
                                                 thickness=4.0, thickness_units="screen")
@@ -299,6 +349,24 @@ class SceneView:
         for key, (p, q, s) in (("bars", (bar_p, bar_q, bar_s)),
                                ("joints", (joint_p, joint_q, joint_s))):
             h[key].batched_positions, h[key].batched_wxyzs, h[key].batched_scales = p, q, s
+
+    def _draw_ghost(self, t: np.ndarray, thickness: float) -> None:
+        """The last realized linkage, faint, while the design on screen has no realization."""
+        if self.ghost is None:
+            if "ghost" in self.handles:
+                self.handles.pop("ghost").remove()
+            return
+        jf, home, radius = self.ghost
+        pts = dq.transform_points(np.repeat(loops.link_poses(jf, t)[0], 2, axis=0), home)
+        p, q, s = self._cylinders(pts[0::2], pts[1::2], radius * thickness, radius * thickness)
+        if "ghost" in self.handles:
+            g = self.handles["ghost"]
+            g.batched_positions, g.batched_wxyzs, g.batched_scales = p, q, s
+        else:
+            self.handles["ghost"] = self.server.scene.add_batched_meshes_simple(
+                "/loop/ghost", _CYL.vertices, _CYL.faces, q, p, batched_scales=s,
+                batched_colors=(150, 150, 160), opacity=0.3, lod="off", cast_shadow=False,
+                receive_shadow=False)
 
     def apply_layers(self, hidden: set[str]) -> None:
         """Show or hide the view layers (the linkage also needs polyline points)."""

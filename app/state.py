@@ -54,6 +54,30 @@ def absolute_mesh(design: Design) -> Design:
     return dataclasses.replace(design, end_effector=dataclasses.replace(ee, mesh=mesh))
 
 
+def rescaled(design: Design, factor: float) -> Design:
+    """``design`` with every length times ``factor`` (a change of unit): target positions,
+    extra poses and target points, the inertia ellipsoid, realization lengths and the
+    end-effector's scale and clearance; rotations and unit-free settings stay."""
+    f = float(factor)
+
+    def pose(p: Pose) -> Pose:
+        return Pose(p.position * f, p.wxyz.copy())
+
+    m, i, r, ee = design.motion, design.inertia, design.realization, design.end_effector
+    motion = dataclasses.replace(m, targets=None if m.targets is None else m.targets * f,
+                                 extra_poses=tuple(pose(p) for p in m.extra_poses))
+    inertia = dataclasses.replace(i, center=i.center * f, semi_axes=i.semi_axes * f)
+    real = dataclasses.replace(r, rho=None if r.rho is None else r.rho * f,
+                               d=None if r.d is None else r.d * f,
+                               fixed={k: v * f for k, v in r.fixed.items()})
+    if ee is not None:
+        ee = dataclasses.replace(ee, scale=ee.scale * f, clearance=None if ee.clearance is None
+                                 else ee.clearance * f)
+    return dataclasses.replace(design, poses=tuple(pose(p) for p in design.poses),
+                               motion=motion, inertia=inertia, realization=real,
+                               end_effector=ee)
+
+
 @dataclasses.dataclass(frozen=True)
 class FabSettings:
     """Fabrication panel settings (validated by the panel): part size (0: automatic, the size
@@ -205,11 +229,12 @@ class StudioState:
 
     # --- autosave ---------------------------------------------------------------------------
     def autosave(self) -> bool:
-        """Write the committed design to the autosave file if it changed since the last write."""
+        """Write the current design (an unfinished drag included) to the autosave file if it
+        changed since the last write."""
         with self._lock:
             if self.autosave_path is None or self.saved_version == self.version:
                 return False
-            design, version = self.committed, self.version
+            design, version = self.design, self.version
         self.autosave_path.parent.mkdir(parents=True, exist_ok=True)
         design_mod.save_design(absolute_mesh(design), self.autosave_path)
         self.saved_version = version

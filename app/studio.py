@@ -3,8 +3,10 @@
 Handlers edit :class:`~app.state.StudioState` and ask the :class:`~app.worker.NewestWorker` for
 an update; the worker solves the newest design with :func:`pipeline.solve` and draws it inside
 ``server.atomic()``: a cheap preview while a gizmo is dragged (motion, factorizations, axes)
-and a full update with the realization on release. Failures become notifications while the
-last valid solution stays on screen.
+and a full update with the realization on release. Failures become notifications (one per
+cause, ``app.notices``) while the last valid solution stays on screen; fits, carvings and
+exports are long jobs with *Cancel job* (``app.jobs``). On open and after *Load design* the
+camera frames everything (``app.camera``), afterwards the user's camera is kept.
 """
 
 from __future__ import annotations
@@ -24,12 +26,16 @@ from typing import Any
 import numpy as np
 import viser
 
+from app import camera
 from app.exports import export_files, slug
+from app.jobs import Cancelled, Jobs
+from app.notices import Notices
 from app.panels.design import Panels
 from app.panels.fabrication import FabricationPanel
 from app.plots import Plots
+from app.restore import RestoreOffer, newer_autosave
 from app.scene import SceneView, design_scale
-from app.state import StudioState, absolute_mesh, autosave_path_for
+from app.state import StudioState, absolute_mesh, autosave_path_for, rescaled
 from app.worker import FRAME, FULL, PREVIEW, NewestWorker
 from paraloop_core import design as design_mod
 from paraloop_core import pipeline
@@ -40,6 +46,10 @@ from paraloop_core.realization import radii
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "assets" / "designs"
 CACHE_SIZE = 16
+#: Seconds between autosave checks (any edit, a drag included, is on disk within 2 s).
+AUTOSAVE_SECONDS = 1.0
+#: Characteristic lengths (design units) outside which the studio warns about the unit.
+USUAL_SCALE = (1e-2, 1e3)
 
 
 class Studio:
@@ -52,7 +62,11 @@ class Studio:
         self.solution: pipeline.Solution | None = None  # last valid solution (on screen)
         self.error: str | None = None  # why the current design has no solution
         self.downloads: list[tuple[str, bytes]] = []
-        self.notifications: list[tuple[str, str, bool]] = []
+        self.notices = Notices(server)
+        self.notifications = self.notices.log  # (title, body, error), newest last
+        self.jobs = Jobs(self._busy)
+        self.restore_offer: RestoreOffer | None = None
+        self._frame_pending = True  # frame the camera after the next full update
         self.timings: dict[int, list[float]] = {PREVIEW: [], FULL: [], FRAME: []}
         self._need_sync = True
         self._drawn = (-1, -1)  # (version, level) of the design on screen
@@ -60,6 +74,9 @@ class Studio:
         self._cache: OrderedDict[str, tuple[pipeline.Solution, str]] = OrderedDict()
         self.scene = SceneView(server, self._on_gizmo)
         self.panels = Panels(server, self)
+        self.panels.frame.on_click(lambda _: self.frame_all(keep_direction=True))
+        self.panels.cancel.on_click(lambda _: self.jobs.cancel())
+        self.panels.rescale.on_click(lambda _: self._rescale_units())
         self.fabrication = FabricationPanel(server, self)
         self.plots = Plots(server)
         self.worker = NewestWorker(self._job, on_slow=self._slow, on_slow_done=self._slow_done)
@@ -133,20 +150,70 @@ class Studio:
             self.notify(f"Cannot load {upload.name}", f"{exc} (the design is unchanged)",
                         error=True)
             return
+        try:
+            design = self._find_mesh(design, upload.name)
+        except DesignFileError as exc:
+            self.notify(f"Cannot load {upload.name}", f"{exc} (the design is unchanged)",
+                        error=True, cause="load")
+            return
         # its own autosave: the opened file's one keeps that file's unsaved work
         self.state.autosave_path = autosave_path_for(None, f"upload-{Path(upload.name).stem}")
         self.state.commit(design)
+        self._frame_pending = True
         self.request(FULL, sync=True)
-        self.notify("Design loaded", upload.name)
+        self.notify("Design loaded", upload.name, cause="load")
+
+    def _find_mesh(self, design: Design, name: str) -> Design:
+        """An uploaded design whose end-effector mesh path is relative: a browser does not
+        tell the file's folder, so the path is looked up against the opened design's folder,
+        then the bundled examples'; raises DesignFileError when no such mesh exists."""
+        ee = design.end_effector
+        if ee is None or ee.mesh is None or Path(ee.mesh).is_absolute():
+            return design if ee is None or ee.mesh is None or Path(ee.mesh).exists() else \
+                self._missing_mesh(ee.mesh)
+        for folder in (self.state.design.base_dir, str(EXAMPLES)):
+            if folder is not None and (Path(folder) / ee.mesh).is_file():
+                return dataclasses.replace(design, base_dir=folder)
+        return self._missing_mesh(ee.mesh)
+
+    @staticmethod
+    def _missing_mesh(mesh: str) -> Design:
+        raise DesignFileError("end_effector.mesh", f"mesh file '{mesh}' not found (relative "
+                              "paths are looked up beside the opened design and the examples)"
+                              "; upload the mesh in the End-effector folder instead")
 
     # --- feedback ---------------------------------------------------------------------------
-    def notify(self, title: str, body: str, error: bool = False) -> None:
-        """Show a notification in every open page (errors stay longer)."""
-        self.notifications.append((title, body, error))
-        del self.notifications[:-50]
-        for client in self.server.get_clients().values():
-            client.add_notification(title, body, color="red" if error else "blue",
-                                    auto_close_seconds=15.0 if error else 5.0)
+    def notify(self, title: str, body: str, error: bool = False, cause: str | None = None
+               ) -> None:
+        """Show a notification in every open page, replacing the one of the same ``cause``
+        (default: the title); errors stay longer."""
+        self.notices.notify(title, body, error, cause)
+
+    def panels_order(self) -> float:
+        """GUI order of the status line (offers are placed just below it)."""
+        return float(self.panels.status.order)
+
+    def reframe(self) -> None:
+        """Frame the camera after the next full update (a design opened or replaced)."""
+        self._frame_pending = True
+
+    def frame_all(self, keep_direction: bool = False) -> None:
+        """Frame targets, trajectory and linkage in every page (left of the GUI panel)."""
+        camera.frame_all(self.server, self.scene.extent_points(), keep_direction)
+
+    def _busy(self, job: str | None) -> None:
+        """Show *Cancel job* while a long job runs."""
+        self.panels.cancel.visible = job is not None
+        if job is not None:
+            self.panels.cancel.label = f"Cancel job ({job})"
+
+    def _rescale_units(self) -> None:
+        """*Rescale*: the design in a unit that brings its size near 1 (one undo step)."""
+        factor = unit_factor(design_scale(self.state.design))
+        self.state.edit(lambda d: rescaled(d, factor))
+        self._frame_pending = True
+        self.request(FULL, sync=True)
+        self.notify("Design rescaled", f"every length x {factor:g}", cause="scale")
 
     def _slow(self) -> None:
         self._progress = [c.add_notification("Computing…", "updating the design", loading=True,
@@ -165,8 +232,11 @@ class Studio:
             for task, arg in self.state.take_tasks():  # after the update
                 if task == "mesh":
                     self.panels.effector.check_mesh(arg)
-                else:  # carve / export
-                    self.fabrication.run(task, arg)
+                elif not self.jobs.start(task, lambda task=task, arg=arg:
+                                         self.fabrication.run(task, arg)):  # carve / export
+                    self.notify(f"Cannot start the {task}", f"the {self.jobs.busy} is still "
+                                "running: wait for it or press Cancel job", error=True,
+                                cause="job")
         except Exception as exc:  # a bug, not bad input: keep serving and say so
             traceback.print_exc()
             self.notify("Internal error", f"{exc!r} (see the server log)", error=True)
@@ -189,13 +259,36 @@ class Studio:
                 self.scene.apply_layers(self.state.hidden)
         key = level if level >= PREVIEW and stale else FRAME
         self.timings[key].append(time.perf_counter() - start)
-        if level == FULL:
-            try:
-                self.state.autosave()
-            except OSError as exc:
-                self.panels.status.content = f"**Status:** autosave failed: {exc}"
+        if level == FULL and self._frame_pending and self.solution is not None:
+            self._frame_pending = False
+            self.frame_all()
+
+    def autosave(self) -> None:
+        """Write the design (unsaved drags included) to the autosave file if it changed."""
+        try:
+            self.state.autosave()
+        except OSError as exc:
+            self.notify("Autosave failed", f"{exc}; use Save design", error=True,
+                        cause="autosave")
 
     def _solve(self, design: Design, full: bool) -> tuple[pipeline.Solution, str]:
+        """:meth:`_solve_cached`; a full fit runs as a long job (progress, *Cancel job*)."""
+        if not (full and design.motion.method == "fit"):
+            return self._solve_cached(design, full)
+        version = self.state.version
+
+        def progress(fraction: float, message: str) -> None:
+            self.jobs.check()
+            if self.state.version != version:  # a newer edit supersedes this fit
+                raise Cancelled("the design changed")
+            self.panels.status.content = f"**Status:** fitting: {message} " \
+                                         f"({100 * fraction:.0f} %)"
+
+        with self.jobs.running("fit"):
+            return self._solve_cached(design, full, progress)
+
+    def _solve_cached(self, design: Design, full: bool, progress: Any = None
+                      ) -> tuple[pipeline.Solution, str]:
         """Solve ``design`` (full updates are cached, so undo/redo is instant); a preview skips
         the realization and reuses the last mu instead of re-running a criterion's scan."""
         if not full:
@@ -210,7 +303,7 @@ class Studio:
         if key not in self._cache:
             try:
                 # the studio keeps the user's loop: fallbacks only thin the bars
-                sol = pipeline.solve(design, other_loops=False)
+                sol = pipeline.solve(design, other_loops=False, progress=progress)
                 report = sol.realization_report or {}
                 note = (f"No realization: {report.get('reason')}"
                         if report.get("status") == "not_found" else "")
@@ -229,16 +322,25 @@ class Studio:
         t0 = time.perf_counter()
         try:
             sol, note = self._solve(design, full)
+        except Cancelled as exc:
+            if str(exc) == "cancelled":  # by the user: keep the last valid solution
+                self._drawn = (version, level)
+                self.panels.status.content = "**Status:** ⚠ fit cancelled (the last valid " \
+                                             "design is shown; edit the design to fit again)"
+                self.notify("Fit cancelled", "stopped as you asked", cause="job")
+            return  # else a newer edit is pending and supersedes it
         except ValueError as exc:  # ParaloopError and other bad input
             self.error = str(exc)
             self._drawn = (version, level)
             shown = "the last valid design is shown" if self.solution else "nothing to show"
             self.panels.status.content = f"**Status:** ⚠ {exc} ({shown})"
-            if full:
-                self.notify("Cannot solve the design", f"{exc} ({shown})", error=True)
+            if full and self.state.version == version:  # superseded errors are dropped
+                self.notify("Cannot solve the design", f"{exc} ({shown})", error=True,
+                            cause="solve")
             return
-        if note:
-            self.notify("No collision-free realization", note, error=True)
+        self.notices.clear("solve")
+        if note and self.state.version == version:
+            self.notify("No collision-free realization", note, error=True, cause="solve")
         ms = 1e3 * (time.perf_counter() - t0)
         self.solution, self.error, self._drawn = sol, None, (version, level)
         with self.server.atomic():
@@ -250,16 +352,23 @@ class Studio:
             if full:
                 self.panels.show_solution(sol)
                 self.plots.update(sol)
+        if full:
+            self.fabrication.mark_stale(sol)
         if full and not note:
             note = realization_note(sol)
+        elif note and self.scene.ghost is not None:
+            note += " The last realized linkage is shown faint."
         kind = "full update" if full else "preview"
         # "ok" only when there is a loop to show (or none was asked for)
-        word = "⚠ solved, not realized" if full and sol.realization is None and \
+        word = "⚠ no collision-free realization" if full and sol.realization is None and \
             sol.design.realization.enabled else "ok"
-        self.panels.status.content = f"**Status:** {word} ({kind} {ms:.0f} ms). {note}"
+        self.panels.status.content = f"**Status:** {word} ({kind} {ms:.0f} ms). {note}" \
+            + scale_warning(design)
+        self.panels.rescale.visible = bool(scale_warning(design))
 
     def _play(self) -> None:
-        last = time.monotonic()
+        """Animation frames at 30 Hz and the autosave every :data:`AUTOSAVE_SECONDS`."""
+        last = saved = time.monotonic()
         while not self._stop.wait(1.0 / 30.0):
             now = time.monotonic()
             dt, last = now - last, now
@@ -267,11 +376,31 @@ class Studio:
                 self.state.u = (self.state.u + self.state.speed * dt) % 1.0
                 self.panels.set_u(round(self.state.u, 3))
                 self.worker.request(FRAME)
+            if now - saved >= AUTOSAVE_SECONDS:
+                saved = now
+                self.autosave()
 
     def close(self) -> None:
+        self.jobs.cancel()
         self._stop.set()
         self._player.join(timeout=2.0)
         self.worker.close()
+        self.jobs.wait(10.0)
+        self.autosave()
+
+
+def unit_factor(scale: float) -> float:
+    """Power of ten that brings a characteristic length ``scale`` near 1."""
+    return float(10.0 ** -np.round(np.log10(scale)))
+
+
+def scale_warning(design: Design) -> str:
+    """A status warning when the design's size is far from 1 unit (else '')."""
+    scale = design_scale(design)
+    if USUAL_SCALE[0] <= scale <= USUAL_SCALE[1]:
+        return ""
+    return (f" ⚠ The targets span {scale:.3g} units: paraloop works in any unit, but sizes "
+            f"near 1 read best (press Rescale for x {unit_factor(scale):g}).")
 
 
 def realization_note(sol: pipeline.Solution) -> str:
@@ -285,21 +414,16 @@ def realization_note(sol: pipeline.Solution) -> str:
             f"{rad.uniform:.3g}, per bar " + ", ".join(f"{r:.3g}" for r in rad.per_bar) + ".")
 
 
-def restore_autosave(studio: Studio, design_path: Path | None) -> str | None:
-    """Load the autosave if it is newer than the opened file; the file's version stays one
-    undo step away. Returns a message when something was restored."""
-    path = studio.state.autosave_path
-    if path is None or not path.exists():
-        return None
-    if design_path is not None and path.stat().st_mtime <= design_path.stat().st_mtime:
-        return None
-    try:
-        design = design_mod.load_design(path)
-    except DesignFileError as exc:
-        return f"ignored a broken autosave {path}: {exc}"
-    studio.state.commit(design)
-    studio.request(FULL, sync=True)
-    return f"restored unsaved work from {path} (Undo returns to the opened file)"
+def offer_restore(studio: Studio, design_path: Path | None) -> str | None:
+    """Offer the autosave when it is newer than the opened file (``app.restore``); returns a
+    line for the terminal, or None."""
+    found = newer_autosave(studio.state.autosave_path, design_path)
+    if found is None or isinstance(found, str):
+        return found
+    design, mtime = found
+    studio.restore_offer = RestoreOffer(studio, design, mtime, studio.reframe)
+    return (f"unsaved changes from {time.strftime('%H:%M', time.localtime(mtime))} found in "
+            f"{studio.state.autosave_path}: the page offers to restore them")
 
 
 def default_design_path() -> Path:
@@ -321,7 +445,7 @@ def run_studio(design_path: str | Path | None, host: str = "127.0.0.1", port: in
     stop = threading.Event()
     signal.signal(signal.SIGINT, lambda *_: stop.set())
     signal.signal(signal.SIGTERM, lambda *_: stop.set())
-    message = restore_autosave(studio, path if opened else None)
+    message = offer_restore(studio, path if opened else None)
     if message:
         print(message)
     print(f"paraloop studio: {design.name} ({path}); autosave: {autosave}")

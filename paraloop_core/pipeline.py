@@ -7,6 +7,7 @@ and the factors of ``M`` are rotation axes in world coordinates.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -106,13 +107,15 @@ def _criterion_params(design: Design, unit: float) -> dict[str, Any]:
     return {"poses": extra, "inertia": inertia_of(design, unit)}
 
 
-def solve(design: Design, *, realize: bool = True, other_loops: bool = True) -> Solution:
+def solve(design: Design, *, realize: bool = True, other_loops: bool = True,
+          progress: Callable[[float, str], None] | None = None) -> Solution:
     """Compute the solution of a design; raises ParaloopError subclasses (ValueError) with a
     clear message for degenerate poses, non-generic motions or impossible realization
     parameters. A realization that is not found is not an error: the solution then carries
     ``realization_report['status'] == 'not_found'`` with the reason and the attempts (the
     design's loop, thinner bars, then with ``other_loops`` the other loops, each with its
-    work budget: :data:`FIRST_ATTEMPT_WORK`, :data:`FALLBACK_WORK`).
+    work budget: :data:`FIRST_ATTEMPT_WORK`, :data:`FALLBACK_WORK`). ``progress(fraction,
+    message)`` is called during a fit (it may raise to stop the fit).
 
     Four-pose motions are designed in :func:`unit_length` (the factorization and the
     realization condition themselves); the singularity measure is unit-free in it too."""
@@ -124,7 +127,7 @@ def solve(design: Design, *, realize: bool = True, other_loops: bool = True) -> 
         from paraloop_core.motion import evolution  # only needed for fitted motions
 
         fit = evolution.fit_motion(poses, inertia_of(design),
-                                   evolution.evolution_settings(design.evolution))
+                                   evolution.evolution_settings(design.evolution), progress)
         c_rel, pose_t, mu, reference = fit.motion_rel, fit.closest_t, None, fit.reference
     else:
         c_rel, pose_t, mu = _four_pose(design, dq.scale_lengths(poses, 1.0 / unit), unit)

@@ -53,6 +53,8 @@ def sun():
 
 
 def wait_long(app, seconds: float = 120.0) -> None:
+    """The worker idle and the background job (carve / export) it started finished."""
+    assert app.worker.wait_idle(seconds) and app.jobs.wait(seconds)
     assert app.worker.wait_idle(seconds)
 
 

@@ -91,7 +91,7 @@ def test_startup_draws_everything(studio):
     labels = [lb.text for lb in studio.scene.labels]
     assert labels[0].startswith("S0 #1") and sorted(s.split()[1] for s in labels) == \
         ["#1", "#2", "#3", "#4"]
-    assert "S=" in studio.panels.loop.options[0] and "ok" in studio.panels.status.content
+    assert "score" in studio.panels.loop.options[0] and "ok" in studio.panels.status.content
     if sol.realization is not None:  # the certified radii (docs/result-format.md)
         assert "certified thickest: every bar and pin" in studio.panels.status.content
     x = studio.plots.angles.data[0]
@@ -148,7 +148,9 @@ def test_status_is_not_ok_without_a_realization(studio, monkeypatch):
     gizmo(studio, 3, position=np.asarray(p.position) + 0.013)
     assert studio.solution.realization is None and studio.error is None
     text = studio.panels.status.content
-    assert "not realized" in text and "ok" not in text.split("(")[0] and "budget" in text
+    assert "no collision-free realization" in text and "ok" not in text.split("(")[0] \
+        and "budget" in text and "faint" in text
+    assert studio.scene.handles["ghost"].visible  # the last realized linkage, faint
     monkeypatch.undo()
     click(studio.panels.undo)
     settle(studio)
@@ -266,9 +268,11 @@ def test_mu_slider_and_merged_history(studio):
     studio.panels.mu.value = 0.62
     settle(studio)
     assert len(studio.state.undo_stack) == undo + 1
-    mu = float(poly.param_to_t(0.62))
-    assert studio.state.design.motion.mu == pytest.approx(mu)
-    assert studio.solution.mu == pytest.approx(mu)
+    assert studio.state.design.motion.mu == pytest.approx(0.62)
+    assert studio.solution.mu == pytest.approx(0.62) and not studio.panels.mu_inf.value
+    studio.panels.mu_inf.value = True  # the family's motion at mu = infinity
+    settle(studio)
+    assert studio.state.design.motion.mu is None and studio.solution.mu is None
     studio.panels.family.value = "1"
     settle(studio)
     assert studio.solution.design.motion.family == 1 or studio.error
@@ -280,8 +284,9 @@ def test_best_mu_button(studio):
     settle(studio)
     sol = studio.solution
     assert studio.error is None and sol.design.motion.criterion == "length"
-    assert studio.panels.mu.value == pytest.approx(float(poly.t_to_param(
-        np.inf if sol.mu is None else sol.mu)), abs=1e-3)
+    # the slider shows the mu the criterion chose, in the same unit as the design file
+    assert studio.panels.mu_inf.value == (sol.mu is None)
+    assert sol.mu is None or studio.panels.mu.value == pytest.approx(sol.mu, abs=1e-3)
     # dragging previews with the last mu (no scan); the release re-runs the criterion
     new = studio.state.design.poses[3].position + 0.02
     gizmo(studio, 3, position=new, phases=("update",))
@@ -352,17 +357,28 @@ def test_add_and_remove_pose(studio):
 
 def test_autosave_and_restore(studio, tmp_path):
     path = studio.state.autosave_path
-    gizmo(studio, 3, position=[0.6, 0.5, 0.8])
-    assert path.exists()
+    # an unfinished drag (no release) is on disk within 2 s
+    gizmo(studio, 3, position=[0.6, 0.5, 0.8], phases=("start", "update"))
+    end = time.monotonic() + 2.0
+    while time.monotonic() < end and not (
+            path.exists() and np.allclose(design_mod.load_design(path).poses[3].position,
+                                          [0.6, 0.5, 0.8])):
+        time.sleep(0.05)
     assert np.allclose(design_mod.load_design(path).poses[3].position, [0.6, 0.5, 0.8])
-    # a new session on the same file restores the autosave; undo returns to the file
+    gizmo(studio, 3, position=[0.6, 0.5, 0.8], phases=("end",))
+    # a new session on the same file offers the autosave; undo returns to the file
     server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     again = studio_mod.Studio(server, design_mod.load_design(DESIGN), path)
     try:
         os.utime(path, (time.time() + 5, time.time() + 5))
-        msg = studio_mod.restore_autosave(again, DESIGN)
+        msg = studio_mod.offer_restore(again, DESIGN)
         settle(again)
-        assert msg and "restored" in msg
+        assert msg and "offers to restore" in msg
+        offer = again.restore_offer
+        assert offer.restore.label.startswith("Restore changes from ")
+        assert np.allclose(again.state.design.poses[3].position, [0.64, 0.48, 0.8])  # not yet
+        click(offer.restore)
+        settle(again)
         assert np.allclose(again.scene.gizmos[3].position, [0.6, 0.5, 0.8])
         click(again.panels.undo)
         settle(again)

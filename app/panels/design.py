@@ -16,7 +16,7 @@ from app.panels.effector import EffectorPanel
 from app.panels.evolution import EvolutionPanel
 from app.scene import FACTOR_COLOR_NAMES, LAYERS
 from app.worker import FRAME, FULL
-from paraloop_core.algebra import factor, poly
+from paraloop_core.algebra import factor
 from paraloop_core.design import CRITERIA, METHODS, Design
 from paraloop_core.linkage import loops
 from paraloop_core.motion.evolution import evolution_settings
@@ -34,13 +34,29 @@ def order_name(j: int) -> str:
 
 
 def loop_label(k: int, singularity: float | None = None, status: str = "") -> str:
-    """Dropdown label of loop ``k``: kind, factorization pair, singularity value and status."""
-    f, g = loops.LOOP_PAIRS[k]
-    kind = "AS" if loops.LOOP_IS_AS[k] else "DB"
-    text = f"{k}: {kind} {order_name(f)}|{order_name(g)}"
+    """Readable dropdown label of loop ``k``, e.g. ``'loop 4 · angle-symmetric · score 77'``:
+    its kind and its score, the singularity measure S (min over the cycle, Sec. 4.4; higher
+    is farther from jamming), with a warning word when it is (near) singular."""
+    text = f"loop {k} · {loops.LOOP_KINDS[k]}"
     if singularity is not None:
-        text += f"  S={singularity:.2e} {status}"
+        text += f" · score {score_text(singularity)}"
+        if status != "ok":
+            text += f" ({status})"
     return text
+
+
+def loop_of_label(label: str) -> int:
+    """The loop index of a :func:`loop_label`."""
+    return int(label.split("·")[0].split()[1])
+
+
+def score_text(value: float) -> str:
+    """A singularity score for people: 77, 3.4, 0.052, 2e-07."""
+    if value >= 10:
+        return f"{value:.0f}"
+    if value >= 1e-3:
+        return f"{value:.2g}"
+    return f"{value:.0e}"
 
 
 def loop_status(singularity: np.ndarray) -> list[str]:
@@ -51,13 +67,13 @@ def loop_status(singularity: np.ndarray) -> list[str]:
             else "ok" for v in s]
 
 
-def mu_to_slider(mu: float | None) -> float:
-    return float(poly.t_to_param(np.inf if mu is None else mu))
+#: Smallest half-range of the mu slider; it widens to show any mu of the design.
+MU_RANGE = 5.0
 
 
-def slider_to_mu(u: float) -> float | None:
-    t = float(poly.param_to_t(u))
-    return None if np.isinf(t) else t
+def mu_range(mu: float | None) -> float:
+    """Half-range of the mu slider that shows ``mu`` (a whole number >= :data:`MU_RANGE`)."""
+    return MU_RANGE if mu is None else float(max(MU_RANGE, np.ceil(1.5 * abs(mu))))
 
 
 def handler(fn: Any) -> Any:
@@ -88,51 +104,95 @@ class Panels:
         self.studio = studio
         gui = server.gui
         self.status = gui.add_markdown("**Status:** starting")
+        self.frame = gui.add_button("Frame all", icon=viser.Icon.FOCUS_CENTERED,
+                                    hint="point the camera at the targets, the motion and the "
+                                         "linkage (left of this panel)")
+        self.cancel = gui.add_button("Cancel job", icon=viser.Icon.PLAYER_STOP, color="red",
+                                     visible=False, hint="stop the running fit, carving or "
+                                                         "export (the design is kept)")
+        self.rescale = gui.add_button("Rescale", visible=False,
+                                      hint="change the design's unit so its size is near 1 "
+                                           "(one Undo step)")
         with gui.add_folder("Design"):
-            self.name = gui.add_text("Name", initial_value="")
+            self.name = gui.add_text("Name", initial_value="", hint="the design's name (files "
+                                     "and downloads are named after it)")
             self.undo = gui.add_button("Undo", icon=viser.Icon.ARROW_BACK_UP)
             self.redo = gui.add_button("Redo", icon=viser.Icon.ARROW_FORWARD_UP)
-            self.save = gui.add_button("Save design", icon=viser.Icon.DEVICE_FLOPPY)
+            self.save = gui.add_button("Save design", icon=viser.Icon.DEVICE_FLOPPY,
+                                       hint="download the design file (JSON)")
             self.load = gui.add_upload_button("Load design", icon=viser.Icon.UPLOAD,
-                                              mime_type="application/json")
-            self.export = gui.add_button("Export result", icon=viser.Icon.DOWNLOAD)
+                                              mime_type="application/json",
+                                              hint="open a design file (JSON) from your disk")
+            self.export = gui.add_button("Export result", icon=viser.Icon.DOWNLOAD,
+                                         hint="download the solution: motion, six "
+                                              "factorizations, nine loops, realization (JSON)")
         with gui.add_folder("Targets"):
             self.locks_folder = gui.add_folder("Locks")
             self.locks: list[viser.GuiCheckboxHandle] = []
-            self.pose_pick = gui.add_dropdown("Pose", ("S0",))
-            self.add_pose = gui.add_button("Add pose")
-            self.remove_pose = gui.add_button("Remove pose")
+            self.pose_pick = gui.add_dropdown("Pose", ("S0",), hint="the target pose that "
+                                              "Remove pose removes")
+            self.add_pose = gui.add_button("Add pose", hint="a new target on the motion, in its "
+                                           "largest gap (drag its gizmo to move it)")
+            self.remove_pose = gui.add_button("Remove pose", hint="at least four stay")
         with gui.add_folder("Motion"):
-            self.method = gui.add_dropdown("Method", METHODS)
-            self.family = gui.add_dropdown("Family", ("0", "1"))
-            self.mu = gui.add_slider("mu", min=0.0, max=1.0, step=0.001, initial_value=0.0,
-                                     hint="projective: 0 and 1 are mu = inf, 0.5 is mu = 0")
-            self.mu_text = gui.add_markdown("mu = inf")
-            self.criterion = gui.add_dropdown("Criterion", CRITERIA, initial_value="length")
-            self.best_mu = gui.add_button("Best mu")
+            self.method = gui.add_dropdown(
+                "Motion from", METHODS, hint="four-pose: the cubic motion through four target "
+                "poses (paper Sec. 4.2); fit: a cubic motion fitted to five or more targets by "
+                "curve evolution (Sec. 4.3)")
+            self.family = gui.add_dropdown(
+                "Solution family", ("0", "1"), hint="four poses admit two one-parameter "
+                "families of cubic motions (Sec. 4.2); mu picks one motion in the family")
+            self.mu = gui.add_slider(
+                "Family parameter mu", min=-MU_RANGE, max=MU_RANGE, step=0.001,
+                initial_value=0.0, hint="the free parameter of the family (a number, no unit; "
+                "Sec. 4.2); the range widens to fit")
+            self.mu_inf = gui.add_checkbox("mu at infinity", initial_value=True,
+                                           hint="the family's motion at mu = infinity")
+            self.criterion = gui.add_dropdown(
+                "Choose mu by", CRITERIA, initial_value="length",
+                hint="base-axes / end-axes: joint axes through the target points; length: "
+                "shortest path of the object, weighted by its inertia ellipsoid; extra-poses: "
+                "closest to the extra poses (Sec. 4.2)")
+            self.best_mu = gui.add_button("Find best mu", hint="scan the family for the mu "
+                                          "that is best by the criterion above")
         self.evolution = EvolutionPanel(gui, self._evolution, handler)
         with gui.add_folder("Loop"):
-            self.loop = gui.add_dropdown("Loop", tuple(loop_label(k) for k in range(9)))
+            self.loop = gui.add_dropdown(
+                "6R loop", tuple(loop_label(k) for k in range(9)),
+                hint="the nine 6R loops of the motion (Sec. 4.3): angle-symmetric or "
+                "double-Bennett; score = singularity measure (Sec. 4.4), higher stays farther "
+                "from a jamming, singular pose")
             legend = ", ".join(f"{c} {order_name(j)}" for j, c in enumerate(FACTOR_COLOR_NAMES))
-            gui.add_markdown(f"Factorization axes: {legend}. AS = angle-symmetric, "
-                             "DB = double-Bennett; S = singularity measure (min over the cycle).")
+            gui.add_markdown(f"Axes of the six factorizations: {legend}.")
         self.real: dict[str, Any] = {}
         with gui.add_folder("Realization"):
             r = self.real
-            r["enabled"] = gui.add_checkbox("Realize", initial_value=True)
-            r["p"] = gui.add_number("p", initial_value=10.0, min=1e-3, step=0.5)
-            r["d_fraction"] = gui.add_number("d fraction", initial_value=0.01, min=1e-6,
-                                             step=0.005)
-            r["rho_fraction"] = gui.add_number("rho fraction", initial_value=0.25,
-                                               min=1e-6, step=0.05)
-            r["d"] = gui.add_number("d (0 = auto)", initial_value=0.0, min=0.0, step=0.01)
-            r["rho"] = gui.add_number("rho (0 = auto)", initial_value=0.0, min=0.0,
-                                      step=0.01)
-            r["fixed"] = gui.add_text("Fixed vertices", initial_value="",
-                                      hint="vertex=offset pairs, e.g. 0=0.1, 3=-0.2")
+            r["enabled"] = gui.add_checkbox(
+                "Find collision-free bars", initial_value=True,
+                hint="search bars on the loop's axes that never collide over the whole motion "
+                     "(Sec. 5.1, exact for the continuous cycle)")
+            r["p"] = gui.add_number("Shift steps (p)", initial_value=10.0, min=1e-3, step=0.5,
+                                    hint="bar ends move along the axes in steps of the loop "
+                                         "length / p (Sec. 5.1)")
+            r["d_fraction"] = gui.add_number(
+                "Joint spacing (x loop length)", initial_value=0.01, min=1e-6, step=0.005,
+                hint="d, the distance between the two bar ends on one axis, as a fraction of "
+                     "the initial polyline's length (used when the value below is 0)")
+            r["rho_fraction"] = gui.add_number(
+                "Bar radius (x joint spacing)", initial_value=0.25, min=1e-6, step=0.05,
+                hint="rho as a fraction of d (used when the value below is 0)")
+            r["d"] = gui.add_number("Joint spacing d (units, 0 = auto)", initial_value=0.0,
+                                    min=0.0, step=0.01, hint="in design units")
+            r["rho"] = gui.add_number("Bar radius rho (units, 0 = auto)", initial_value=0.0,
+                                      min=0.0, step=0.01, hint="in design units")
+            r["fixed"] = gui.add_text("Held bar ends", initial_value="",
+                                      hint="vertex=offset pairs in design units along the "
+                                           "vertex's axis, e.g. 0=0.1, 3=-0.2")
         self.effector = EffectorPanel(gui, studio, handler)
         with gui.add_folder("Animation"):
-            self.u = gui.add_slider("u", min=0.0, max=1.0, step=0.001, initial_value=0.0)
+            self.u = gui.add_slider("Cycle position", min=0.0, max=1.0, step=0.001,
+                                    initial_value=0.0,
+                                    hint="0 .. 1 runs once through the whole motion")
             self.play = gui.add_checkbox("Play", initial_value=False)
             self.speed = gui.add_slider("Speed", min=0.01, max=1.0, step=0.01,
                                         initial_value=0.1, hint="cycles per second")
@@ -156,11 +216,11 @@ class Panels:
         self.remove_pose.on_click(handler(lambda _: self._remove_pose()))
         self.method.on_update(handler(lambda _: self._motion(method=self.method.value)))
         self.family.on_update(handler(lambda _: self._motion(family=int(self.family.value))))
-        self.mu.on_update(handler(lambda _: self._motion(
-            merge="mu", mu=slider_to_mu(self.mu.value), criterion=None)))
+        self.mu.on_update(handler(lambda _: self._set_mu()))
+        self.mu_inf.on_update(handler(lambda _: self._motion(
+            mu=None if self.mu_inf.value else float(self.mu.value), criterion=None)))
         self.best_mu.on_click(handler(lambda _: self._motion(criterion=self.criterion.value)))
-        self.loop.on_update(handler(lambda _: self._edit(
-            loop=int(self.loop.value.split(":")[0]))))
+        self.loop.on_update(handler(lambda _: self._edit(loop=loop_of_label(self.loop.value))))
         for key, handle in self.real.items():
             handle.on_update(handler(lambda _, key=key: self._realization(key)))
         self.u.on_update(handler(lambda _: self._set_u(self.u.value)))
@@ -182,6 +242,11 @@ class Panels:
         self.studio.state.edit(lambda d: dataclasses.replace(
             d, motion=dataclasses.replace(d.motion, **changes)), merge)
         self.studio.request(FULL)
+
+    def _set_mu(self) -> None:
+        with writing_back():  # a slider move leaves "mu at infinity"
+            self.mu_inf.value = False
+        self._motion(merge="mu", mu=float(self.mu.value), criterion=None)
 
     def _evolution(self, key: str, value: Any) -> None:
         options = {**self.studio.state.design.evolution, key: value}
@@ -262,7 +327,7 @@ class Panels:
                 h.value = i in design.locked
             m = design.motion
             self.method.value, self.family.value = m.method, str(m.family)
-            self.mu.value = mu_to_slider(m.mu)
+            self._show_mu(m.mu)
             if m.criterion is not None:
                 self.criterion.value = m.criterion
             self.loop.value = self.loop.options[design.loop]
@@ -284,11 +349,19 @@ class Panels:
             opts = tuple(loop_label(k, float(sol.singularity[k]), status[k]) for k in range(9))
             self.loop.options = opts
             self.loop.value = opts[sol.design.loop]
-            self.mu_text.content = "mu = inf" if sol.mu is None else f"mu = {sol.mu:.4g}"
             self.evolution.show(sol.fit)
             self.effector.show(sol)
-            if sol.design.motion.criterion is not None:
-                self.mu.value = mu_to_slider(sol.mu)
+            if sol.design.motion.criterion is not None:  # the mu the criterion chose
+                self._show_mu(sol.mu)
+
+    def _show_mu(self, mu: float | None) -> None:
+        """The mu controls for ``mu`` (inside :func:`writing_back`)."""
+        half = mu_range(mu)
+        if self.mu.max != half:
+            self.mu.min, self.mu.max = -half, half
+        self.mu_inf.value = mu is None
+        if mu is not None:
+            self.mu.value = round(float(mu), 3)
 
     def set_u(self, u: float) -> None:
         with writing_back():

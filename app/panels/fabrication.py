@@ -1,7 +1,8 @@
 """The studio's Fabrication folder: settings, *Carve design spaces* and *Export all (zip)*.
 
 Handlers validate a setting into ``state.fab`` or queue a task (``state.add_task``); the
-worker runs the task (:meth:`FabricationPanel.run`) with a progress bar, draws the carved
+studio runs the task (:meth:`FabricationPanel.run`) as a background job (``app.jobs``: the
+worker keeps drawing edits, *Cancel job* stops it) with a progress bar, draws the carved
 spaces inside ``server.atomic()`` and shows the continuous-motion bound and the verification
 result. Failures become notifications; the design is never changed.
 """
@@ -15,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 import viser
 
 from app.exports import CUSTOM, ORDER_PRESETS, carve_spaces, export_zip, parse_order, size_of
+from app.jobs import Cancelled
 from app.panels.design import handler, writing_back
 from app.scene import SPACES_LAYER
 from app.state import FabSettings
@@ -30,10 +32,6 @@ BOUND_HELP = ("Voxel carving is approximate; the bound makes it safe: every swee
               "sampled position (a proven Bernstein bound on the speed of the rational "
               "motion), and each removal reaches that margin plus the voxel balls. The carved "
               "spaces are therefore disjoint for the **continuous** motion.")
-
-
-class Cancelled(Exception):
-    """Raised from a progress callback when the design changed under a running task."""
 
 
 def check_setting(key: str, value: Any) -> Any:
@@ -53,6 +51,9 @@ def check_setting(key: str, value: Any) -> Any:
     return value
 
 
+STALE = "*(stale: the design changed since; run it again)* "
+
+
 class FabricationPanel:
     """GUI of the Fabrication folder; ``studio`` supplies state, worker, scene and files."""
 
@@ -64,6 +65,8 @@ class FabricationPanel:
         self._version = -1  # design version the running task started from
         self.carving: dict | None = None  # the last carving's report
         self.progress_log: list[tuple[str, float]] = []
+        self._made_for: Any = None  # the realization the texts below describe
+        self._stale = False
         with gui.add_folder("Fabrication", expand_by_default=False):
             self.inputs: dict[str, Any] = {
                 "size_mm": gui.add_number(
@@ -127,6 +130,21 @@ class FabricationPanel:
             for key, handle in self.inputs.items():
                 handle.value = getattr(fab, key)
 
+    def mark_stale(self, sol: Any) -> None:
+        """Mark the carving and export texts stale when ``sol``'s realization is not the one
+        they were made for (the design changed since)."""
+        stale = self._made_for is not None and sol.realization is not self._made_for
+        if stale and not self._stale:
+            for text in (self.bound, self.verification):
+                text.content = STALE + text.content
+        self._stale = self._stale or stale
+
+    def _fresh(self, sol: Any) -> None:
+        """The results are about to describe ``sol``: drop the stale marks."""
+        self._made_for, self._stale = sol.realization, False
+        for text in (self.bound, self.verification):
+            text.content = text.content.removeprefix(STALE)
+
     def run(self, task: str, client: Any) -> None:
         """Run a queued task on the last valid solution (worker thread)."""
         studio = self.studio
@@ -138,13 +156,17 @@ class FabricationPanel:
         self._version = studio.state.version
         self._progress(0.0, "starting", title)
         try:
+            sol = studio.solution
+            self._fresh(sol)
             if task == "carve":
-                self._carve(studio.solution)
+                self._carve(sol)
             else:
-                self._export(studio.solution, client)
-        except Cancelled:
-            studio.notify(f"{title} cancelled", "the design changed; press the button again")
-            self.progress_text.content = f"{title} cancelled (the design changed)."
+                self._export(sol, client)
+        except Cancelled as exc:
+            why = "stopped as you asked" if str(exc) == "cancelled" else \
+                "the design changed; press the button again"
+            studio.notify(f"{title} cancelled", why, cause="job")
+            self.progress_text.content = f"{title} cancelled ({why})."
         except (FabricationError, ValueError) as exc:
             studio.notify(f"{title} failed", f"{exc} (the design is unchanged)", error=True)
             self.progress_text.content = f"{title} failed: {exc}"
@@ -152,9 +174,10 @@ class FabricationPanel:
             self.progress.visible = False
 
     def _progress(self, fraction: float, message: str, title: str) -> None:
-        """Show progress; a design edit since the task started cancels it."""
+        """Show progress; *Cancel job* or a design edit since the task started cancels it."""
+        self.studio.jobs.check()
         if self.studio.state.version != self._version:
-            raise Cancelled
+            raise Cancelled("the design changed")
         self.progress_log.append((message, fraction))
         self.progress.visible = True
         self.progress.value = 100.0 * min(max(fraction, 0.0), 1.0)

@@ -1,0 +1,82 @@
+"""The offer to restore unsaved changes: on start, an autosave newer than the opened file is
+not applied silently; the panel shows *Restore changes from HH:MM* and *Discard changes*."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import viser
+
+from app.worker import FULL
+from paraloop_core import design as design_mod
+from paraloop_core.design import Design
+from paraloop_core.errors import DesignFileError
+
+if TYPE_CHECKING:
+    from app.host import StudioHost
+
+
+def newer_autosave(autosave: Path | None, design_path: Path | None
+                   ) -> tuple[Design, float] | str | None:
+    """The autosaved design and its time when it is newer than ``design_path`` (any autosave
+    when no file was opened), a message when it is unreadable, else None."""
+    if autosave is None or not autosave.exists():
+        return None
+    mtime = autosave.stat().st_mtime
+    if design_path is not None and mtime <= design_path.stat().st_mtime:
+        return None
+    try:
+        return design_mod.load_design(autosave), mtime
+    except DesignFileError as exc:
+        return f"ignored a broken autosave {autosave}: {exc}"
+
+
+class RestoreOffer:
+    """Buttons under the status line; *Restore* commits the autosaved design (the opened
+    file's version stays one Undo away), *Discard* deletes the autosave."""
+
+    def __init__(self, studio: StudioHost, design: Design, mtime: float,
+                 on_restore: Any) -> None:
+        self.studio = studio
+        self.design = design  # kept in memory: later autosaves cannot lose it
+        self._on_restore = on_restore
+        gui, order = studio.server.gui, studio.panels_order() + 0.01
+        when = time.strftime("%H:%M", time.localtime(mtime))
+        day = time.strftime("%Y-%m-%d", time.localtime(mtime))
+        self.text = gui.add_markdown(
+            f"**Unsaved changes** from {day} {when} were found (autosave).", order=order)
+        self.restore = gui.add_button(f"Restore changes from {when}", icon=viser.Icon.RESTORE,
+                                      color="green", order=order + 0.001,
+                                      hint="replace the opened file's design by the autosave "
+                                           "(Undo returns to the file)")
+        self.discard = gui.add_button("Discard changes", order=order + 0.002,
+                                      hint="keep the opened file and delete the autosave")
+        self.restore.on_click(lambda _: self.accept())
+        self.discard.on_click(lambda _: self.reject())
+        self.open = True
+
+    def accept(self) -> None:
+        if not self._close():
+            return
+        self.studio.state.commit(self.design)
+        self._on_restore()
+        self.studio.request(FULL, sync=True)
+        self.studio.notify("Changes restored", "Undo returns to the opened file", cause="load")
+
+    def reject(self) -> None:
+        if not self._close():
+            return
+        path = self.studio.state.autosave_path
+        if path is not None and self.studio.state.version == 0:  # nothing newer written
+            path.unlink(missing_ok=True)
+        self.studio.notify("Changes discarded", "the opened file is kept", cause="load")
+
+    def _close(self) -> bool:
+        if not self.open:
+            return False
+        self.open = False
+        for handle in (self.text, self.restore, self.discard):
+            handle.remove()
+        return True
