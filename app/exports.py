@@ -101,7 +101,7 @@ def fabrication_options(real: Any, fab: FabSettings, carved: bool) -> dict[str, 
         scale = design_scale(np.asarray(real.points, float), size)
         opts["space_radius"] = (fab.space_radius_mm / scale if fab.space_radius_mm > 0
                                 else float(np.median(real.design_space_radii)))
-        opts["resolution"] = fab.resolution
+        opts["resolution"] = fab.resolution or None  # 0: automatic
         opts["order"] = carve_order(fab)
     return opts
 

@@ -261,17 +261,22 @@ class SceneView:
                 and np.array_equal(self.spaces_jf, jf))
 
     # --- loop and linkage -------------------------------------------------------------------
-    def set_loop(self, sol: Any) -> None:
-        """Choose the linkage geometry: the realization's points, else the bare loop polyline."""
+    def set_loop(self, sol: Any, preview: np.ndarray | None = None,
+                 preview_radius: float | None = None) -> None:
+        """Choose the linkage geometry: the realization's points, else a drag ``preview``
+        ``(12, 3)`` (bars of ``preview_radius``), else the bare loop polyline."""
         loop = sol.loop
         self.joint_factors = loop.joint_factors
         self.center = sol.design.pose_array[0].mean(0)
         real = sol.realization
-        self.ghost = None if real is not None else self.last_real
+        self.ghost = None if real is not None or preview is not None else self.last_real
         if real is not None:
             self.points_home = np.asarray(real.points, float)
             self.bar_radius = float(real.radius)
             self.last_real = (loop.joint_factors, self.points_home, self.bar_radius)
+        elif preview is not None:
+            self.points_home = np.asarray(preview, float)
+            self.bar_radius = float(preview_radius or 0.01 * self.scale)
         else:  # the shortest closed polyline on the axes (eq. 11): S_i = E_{i-1}
             try:
                 e = polyline.shortest_polyline(loop.joint_factors)[1]

@@ -18,6 +18,7 @@ import numpy as np
 
 from paraloop_core import design as design_mod
 from paraloop_core.design import Design, Pose
+from paraloop_core.errors import DesignFileError
 
 HISTORY = 200
 MERGE_SECONDS = 1.5
@@ -78,11 +79,32 @@ def rescaled(design: Design, factor: float) -> Design:
                                end_effector=ee)
 
 
+def find_mesh(design: Design, folders: tuple[str | None, ...]) -> Design:
+    """An uploaded design whose end-effector mesh path is relative: a browser does not tell
+    the file's folder, so the path is looked up in ``folders`` (the opened design's, then the
+    examples'); the first that has it becomes ``base_dir``. Raises DesignFileError when the
+    mesh exists nowhere (the design would load, then fail to solve)."""
+    ee = design.end_effector
+    if ee is None or ee.mesh is None:
+        return design
+    if Path(ee.mesh).is_absolute():
+        if Path(ee.mesh).is_file():
+            return design
+    else:
+        for folder in folders:
+            if folder is not None and (Path(folder) / ee.mesh).is_file():
+                return dataclasses.replace(design, base_dir=folder)
+    raise DesignFileError("end_effector.mesh", f"mesh file '{ee.mesh}' not found (relative "
+                          "paths are looked up beside the opened design and the examples); "
+                          "upload the mesh in the End-effector folder instead")
+
+
 @dataclasses.dataclass(frozen=True)
 class FabSettings:
     """Fabrication panel settings (validated by the panel): part size (0: automatic, the size
     at which the parts meet the generic printer profile) and clearance in mm, carving radius in
-    mm (0: the realization's median design-space radius), voxels along a space, the carving
+    mm (0: the realization's median design-space radius), voxels along a space (0: automatic,
+    :func:`voxelspace.auto_resolution`), the carving
     order (a preset name or ``custom``) and its custom pairs text."""
 
     size_mm: float = 0.0
@@ -90,7 +112,7 @@ class FabSettings:
     print_in_place: bool = False
     ground: bool = True
     space_radius_mm: float = 0.0
-    resolution: int = 96
+    resolution: int = 0
     order: str = "base first"
     custom_order: str = ""
     carved_parts: bool = False

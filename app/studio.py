@@ -12,14 +12,12 @@ camera frames everything (``app.camera``), afterwards the user's camera is kept.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import signal
 import sys
 import threading
 import time
 import traceback
-from collections import OrderedDict
 from pathlib import Path
 from typing import Any
 
@@ -35,22 +33,19 @@ from app.panels.fabrication import FabricationPanel
 from app.plots import Plots
 from app.restore import RestoreOffer, newer_autosave
 from app.scene import SceneView, design_scale
-from app.state import StudioState, absolute_mesh, autosave_path_for, rescaled
+from app.solver import Solver
+from app.state import StudioState, absolute_mesh, autosave_path_for, find_mesh, rescaled
+from app.status import realization_note, scale_warning, unit_factor
 from app.worker import FRAME, FULL, PREVIEW, NewestWorker
 from paraloop_core import design as design_mod
 from paraloop_core import pipeline
 from paraloop_core.algebra import dq, poly
 from paraloop_core.design import Design, Pose
-from paraloop_core.errors import DesignFileError, ParaloopError, RealizationError
-from paraloop_core.realization import radii
+from paraloop_core.errors import DesignFileError, ParaloopError
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "assets" / "designs"
-CACHE_SIZE = 16
 #: Seconds between autosave checks (any edit, a drag included, is on disk within 2 s).
 AUTOSAVE_SECONDS = 1.0
-#: Characteristic lengths (design units) outside which the studio warns about the unit.
-USUAL_SCALE = (1e-2, 1e3)
-
 
 class Studio:
     """The studio bound to one viser server (several browser tabs share it)."""
@@ -67,11 +62,11 @@ class Studio:
         self.jobs = Jobs(self._busy)
         self.restore_offer: RestoreOffer | None = None
         self._frame_pending = True  # frame the camera after the next full update
+        self.solver = Solver()  # cached, warm-started solves
         self.timings: dict[int, list[float]] = {PREVIEW: [], FULL: [], FRAME: []}
         self._need_sync = True
         self._drawn = (-1, -1)  # (version, level) of the design on screen
         self._progress: list[Any] = []
-        self._cache: OrderedDict[str, tuple[pipeline.Solution, str]] = OrderedDict()
         self.scene = SceneView(server, self._on_gizmo)
         self.panels = Panels(server, self)
         self.panels.frame.on_click(lambda _: self.frame_all(keep_direction=True))
@@ -151,7 +146,7 @@ class Studio:
                         error=True)
             return
         try:
-            design = self._find_mesh(design, upload.name)
+            design = find_mesh(design, (self.state.design.base_dir, str(EXAMPLES)))
         except DesignFileError as exc:
             self.notify(f"Cannot load {upload.name}", f"{exc} (the design is unchanged)",
                         error=True, cause="load")
@@ -162,25 +157,6 @@ class Studio:
         self._frame_pending = True
         self.request(FULL, sync=True)
         self.notify("Design loaded", upload.name, cause="load")
-
-    def _find_mesh(self, design: Design, name: str) -> Design:
-        """An uploaded design whose end-effector mesh path is relative: a browser does not
-        tell the file's folder, so the path is looked up against the opened design's folder,
-        then the bundled examples'; raises DesignFileError when no such mesh exists."""
-        ee = design.end_effector
-        if ee is None or ee.mesh is None or Path(ee.mesh).is_absolute():
-            return design if ee is None or ee.mesh is None or Path(ee.mesh).exists() else \
-                self._missing_mesh(ee.mesh)
-        for folder in (self.state.design.base_dir, str(EXAMPLES)):
-            if folder is not None and (Path(folder) / ee.mesh).is_file():
-                return dataclasses.replace(design, base_dir=folder)
-        return self._missing_mesh(ee.mesh)
-
-    @staticmethod
-    def _missing_mesh(mesh: str) -> Design:
-        raise DesignFileError("end_effector.mesh", f"mesh file '{mesh}' not found (relative "
-                              "paths are looked up beside the opened design and the examples)"
-                              "; upload the mesh in the End-effector folder instead")
 
     # --- feedback ---------------------------------------------------------------------------
     def notify(self, title: str, body: str, error: bool = False, cause: str | None = None
@@ -272,9 +248,9 @@ class Studio:
                         cause="autosave")
 
     def _solve(self, design: Design, full: bool) -> tuple[pipeline.Solution, str]:
-        """:meth:`_solve_cached`; a full fit runs as a long job (progress, *Cancel job*)."""
+        """:meth:`Solver.solve`; a full fit runs as a long job (progress, *Cancel job*)."""
         if not (full and design.motion.method == "fit"):
-            return self._solve_cached(design, full)
+            return self.solver.solve(design, full, self.solution)
         version = self.state.version
 
         def progress(fraction: float, message: str) -> None:
@@ -285,37 +261,7 @@ class Studio:
                                          f"({100 * fraction:.0f} %)"
 
         with self.jobs.running("fit"):
-            return self._solve_cached(design, full, progress)
-
-    def _solve_cached(self, design: Design, full: bool, progress: Any = None
-                      ) -> tuple[pipeline.Solution, str]:
-        """Solve ``design`` (full updates are cached, so undo/redo is instant); a preview skips
-        the realization and reuses the last mu instead of re-running a criterion's scan."""
-        if not full:
-            m = design.motion
-            if m.criterion is not None and self.solution is not None:
-                motion = dataclasses.replace(m, criterion=None, mu=self.solution.mu)
-                design = dataclasses.replace(design, motion=motion)
-            return pipeline.solve(design, realize=False), ""
-        data = design_mod.design_to_dict(absolute_mesh(design))  # a mesh path per file
-        del data["name"], data["locked"]  # neither changes the solution
-        key = json.dumps(data, sort_keys=True)
-        if key not in self._cache:
-            try:
-                # the studio keeps the user's loop: fallbacks only thin the bars
-                sol = pipeline.solve(design, other_loops=False, progress=progress)
-                report = sol.realization_report or {}
-                note = (f"No realization: {report.get('reason')}"
-                        if report.get("status") == "not_found" else "")
-                self._cache[key] = (sol, note)
-            except RealizationError as exc:
-                self._cache[key] = (pipeline.solve(design, realize=False),
-                                    f"No realization: {exc}")
-            while len(self._cache) > CACHE_SIZE:
-                self._cache.popitem(last=False)
-        self._cache.move_to_end(key)
-        sol, note = self._cache[key]
-        return dataclasses.replace(sol, design=design), note
+            return self.solver.solve(design, full, self.solution, progress)
 
     def _solve_and_draw(self, design: Design, version: int, level: int) -> None:
         full = level == FULL
@@ -343,10 +289,15 @@ class Studio:
             self.notify("No collision-free realization", note, error=True, cause="solve")
         ms = 1e3 * (time.perf_counter() - t0)
         self.solution, self.error, self._drawn = sol, None, (version, level)
+        if full and sol.realization is not None:
+            self.solver.realized = sol
+        hint = self.solver.realized
+        preview = None if full or hint is None else self.solver.preview_points
         with self.server.atomic():
             self.scene.draw_motion(sol)
             self.scene.draw_factorizations(sol)
-            self.scene.set_loop(sol)
+            self.scene.set_loop(sol, preview, None if preview is None else
+                                hint.realization.radius)
             self.scene.draw_frame(self.state.u, self.state.thickness)
             self.scene.apply_layers(self.state.hidden)
             if full:
@@ -359,6 +310,9 @@ class Studio:
         elif note and self.scene.ghost is not None:
             note += " The last realized linkage is shown faint."
         kind = "full update" if full else "preview"
+        if not full and preview is not None:
+            note = "Linkage: the last realization moved along, its minima checked exactly; " \
+                   "certified collision-free on release."
         # "ok" only when there is a loop to show (or none was asked for)
         word = "⚠ no collision-free realization" if full and sol.realization is None and \
             sol.design.realization.enabled else "ok"
@@ -387,31 +341,6 @@ class Studio:
         self.worker.close()
         self.jobs.wait(10.0)
         self.autosave()
-
-
-def unit_factor(scale: float) -> float:
-    """Power of ten that brings a characteristic length ``scale`` near 1."""
-    return float(10.0 ** -np.round(np.log10(scale)))
-
-
-def scale_warning(design: Design) -> str:
-    """A status warning when the design's size is far from 1 unit (else '')."""
-    scale = design_scale(design)
-    if USUAL_SCALE[0] <= scale <= USUAL_SCALE[1]:
-        return ""
-    return (f" ⚠ The targets span {scale:.3g} units: paraloop works in any unit, but sizes "
-            f"near 1 read best (press Rescale for x {unit_factor(scale):g}).")
-
-
-def realization_note(sol: pipeline.Solution) -> str:
-    """One status line about the realization of the selected loop."""
-    real = sol.realization
-    if real is None:
-        return "" if sol.design.realization.enabled else "Realization: off."
-    rad = radii.certified_radii(real.pairs, real.pair_lower, real.radius)
-    return (f"Realized loop {sol.design.loop}: bar radius {real.radius:.3g}, "
-            f"min clearance {real.min_clearance:.3g}; certified thickest: every bar and pin "
-            f"{rad.uniform:.3g}, per bar " + ", ".join(f"{r:.3g}" for r in rad.per_bar) + ".")
 
 
 def offer_restore(studio: Studio, design_path: Path | None) -> str | None:

@@ -108,14 +108,17 @@ def _criterion_params(design: Design, unit: float) -> dict[str, Any]:
 
 
 def solve(design: Design, *, realize: bool = True, other_loops: bool = True,
-          progress: Callable[[float, str], None] | None = None) -> Solution:
+          progress: Callable[[float, str], None] | None = None,
+          hint: Solution | None = None) -> Solution:
     """Compute the solution of a design; raises ParaloopError subclasses (ValueError) with a
     clear message for degenerate poses, non-generic motions or impossible realization
     parameters. A realization that is not found is not an error: the solution then carries
     ``realization_report['status'] == 'not_found'`` with the reason and the attempts (the
     design's loop, thinner bars, then with ``other_loops`` the other loops, each with its
     work budget: :data:`FIRST_ATTEMPT_WORK`, :data:`FALLBACK_WORK`). ``progress(fraction,
-    message)`` is called during a fit (it may raise to stop the fit).
+    message)`` is called during a fit (it may raise to stop the fit). ``hint``: a solution of
+    a nearby design (the previous drag step) whose realization is tried first on the same
+    loop (:func:`realize.warm_start`, certified as any other answer).
 
     Four-pose motions are designed in :func:`unit_length` (the factorization and the
     realization condition themselves); the singularity measure is unit-free in it too."""
@@ -142,8 +145,68 @@ def solve(design: Design, *, realize: bool = True, other_loops: bool = True,
     sol = Solution(design, motion, monic, reference, pose_t, mu, facts, loop_list, s_min, s_t,
                    fit=fit)
     if realize and design.realization.enabled:
-        sol = _with_realization(sol, other_loops)
+        warm = None if hint is None else warm_realization(sol, hint)
+        sol = warm if warm is not None else _with_realization(sol, other_loops)
     return sol
+
+
+def _params(sol: Solution, rho_f: float = 1.0, d_f: float = 1.0) -> dict[str, Any]:
+    """Realization keyword arguments of the design, bars ``rho_f`` thinner, ``d_f`` closer."""
+    r = sol.design.realization
+    return dict(p=r.p, rho=None if r.rho is None else r.rho * rho_f,
+                d=None if r.d is None else r.d * d_f, d_fraction=r.d_fraction * d_f,
+                rho_fraction=r.rho_fraction * rho_f / d_f, fixed=dict(r.fixed), max_k=r.max_k)
+
+
+def warm_preview(sol: Solution, hint: Solution) -> np.ndarray | None:
+    """Vertices ``(12, 3)`` (design units) of ``sol``'s loop with the shifts and offsets of
+    ``hint``'s realization when the thin check and the exact minima (Sec. 5.1) clear them, else
+    None. Not certified (no sound bounds; a loop with an end-effector is not previewed): a drag
+    shows it, the release certifies (:func:`warm_realization`)."""
+    from paraloop_core.realization import realize as realize_mod
+
+    real, design = hint.realization, sol.design
+    if (real is None or hint.design.loop != design.loop or design.end_effector is not None
+            or hint.end_effector is not None or not design.realization.enabled):
+        return None
+    try:
+        params = _params(sol)
+        search = realize_mod.Search(sol.loop.joint_factors, params.pop("fixed"))
+        return search.run_hint(real.shifts, real.offsets, **params, certify=False)
+    except RealizationError:
+        return None
+
+
+def warm_realization(sol: Solution, hint: Solution) -> Solution | None:
+    """``sol`` realized with the shifts and offsets of ``hint``'s realization when ``hint``
+    realized the same loop (same end-effector kind) and they realize ``sol``'s loop too; else
+    None. Cheap (one candidate), so a drag can show the realized loop at every step."""
+    from dataclasses import replace
+
+    from paraloop_core.realization import realize as realize_mod
+
+    real, design = hint.realization, sol.design
+    if (real is None or hint.design.loop != design.loop
+            or (hint.end_effector is None) != (design.end_effector is None)):
+        return None
+    try:
+        if design.end_effector is None:
+            ee = None
+            found = realize_mod.warm_start(sol.loop.joint_factors, real.shifts, real.offsets,
+                                           **_params(sol))
+        else:
+            from paraloop_core.realization import realize_ee
+
+            ee = realize_ee.warm_start_with_effector(
+                sol.loop.joint_factors, attach_end_effector(sol), real.shifts, real.offsets,
+                **_params(sol), ee_clearance=design.end_effector.clearance)
+            found = None if ee is None else ee.realization
+    except RealizationError:
+        return None  # e.g. the loop became spherical: the full search says why
+    if found is None:
+        return None
+    report = {"status": "found", "attempts": [], "fallback": None, "warm_start": True}
+    return replace(sol, realization=found, end_effector=ee, realization_report=report)
 
 
 #: Largest singularity measure (unit-free, the best of the nine loops) below which a design
@@ -171,14 +234,11 @@ def _with_realization(sol: Solution, other_loops: bool) -> Solution:
 
     from paraloop_core.realization import realize as realize_mod
 
-    r = sol.design.realization
     tried: list[dict[str, Any]] = []
     for n, (loop, rho_f, d_f) in enumerate(_attempts(sol, other_loops)):
         attempt = replace(sol, design=replace(sol.design, loop=loop))
-        params = dict(p=r.p, rho=None if r.rho is None else r.rho * rho_f,
-                      d=None if r.d is None else r.d * d_f, d_fraction=r.d_fraction * d_f,
-                      rho_fraction=r.rho_fraction * rho_f / d_f, fixed=dict(r.fixed),
-                      max_k=r.max_k, budget=FALLBACK_WORK if n else FIRST_ATTEMPT_WORK)
+        params = dict(_params(sol, rho_f, d_f),
+                      budget=FALLBACK_WORK if n else FIRST_ATTEMPT_WORK)
         try:
             if sol.design.end_effector is None:
                 real = realize_mod.realize(attempt.loop.joint_factors, **params)
@@ -280,10 +340,10 @@ def result_to_dict(sol: Solution) -> dict[str, Any]:
 
         out["motion"]["fit"] = evolution.fit_result_to_dict(sol.fit)
     if sol.realization is not None:
-        from paraloop_core.realization import realize as realize_mod
+        from paraloop_core.realization.report import realization_to_dict
 
         out["realization"] = {**sol.realization_report, "loop": sol.design.loop,
-                              **realize_mod.realization_to_dict(sol.realization)}
+                              **realization_to_dict(sol.realization)}
     elif sol.realization_report is not None:
         out["realization"] = {**sol.realization_report, "loop": sol.design.loop}
     if sol.end_effector is not None:

@@ -44,8 +44,8 @@ def check_setting(key: str, value: Any) -> Any:
             raise ValueError(f"must be >= 0 mm, got {value:g}")
     elif key == "resolution":
         value = int(value)
-        if not 16 <= value <= 256:
-            raise ValueError(f"voxels per space must be 16..256, got {value}")
+        if not (value == 0 or 16 <= value <= 256):
+            raise ValueError(f"voxels per space must be 0 (automatic) or 16..256, got {value}")
     elif key == "custom_order" and value.strip():
         parse_order(value)
     return value
@@ -81,8 +81,11 @@ class FabricationPanel:
                 "space_radius_mm": gui.add_number(
                     "Space radius (mm)", initial_value=fab.space_radius_mm, step=1.0,
                     hint="design-space radius; 0 = the realization's (median), base link x2"),
-                "resolution": gui.add_slider("Voxels per space", min=16, max=256, step=8,
-                                             initial_value=fab.resolution),
+                "resolution": gui.add_number(
+                    "Voxels per space", initial_value=fab.resolution, min=0, max=256, step=8,
+                    hint="voxels along each design space; 0 = automatic (96..256, so that "
+                         "every space is several voxels thick); carving is approximate, the "
+                         "continuous-motion bound below keeps it safe"),
                 "order": gui.add_dropdown("Carving order", (*ORDER_PRESETS, CUSTOM),
                                           initial_value=fab.order),
                 "custom_order": gui.add_text("Custom pairs", fab.custom_order,
@@ -203,7 +206,8 @@ class FabricationPanel:
         self.bound.content = (
             f"**Continuous-motion bound:** motion margin {margin:.3g} design units "
             f"= {mm:.3g} mm at {size:.0f} mm. {BOUND_HELP} "
-            f"Carved in {cv.report['seconds']:.1f} s, voxels kept {cv.report['voxels']}"
+            f"Carved at {cv.report['resolution']} voxels per space in "
+            f"{cv.report['seconds']:.1f} s, voxels kept {cv.report['voxels']}"
             + (f"; too thin to mesh: links {empty}." if empty else "."))
         self.progress_text.content = f"Carving done ({len(bodies) - len(empty)} spaces)."
         if len(empty) == len(bodies):

@@ -336,8 +336,8 @@ def export_parts(joint_factors: np.ndarray, points: np.ndarray, radius: float, *
                  ground_link: int | None = None,
                  ground_z: float | None = None,
                  space_radius: float | Sequence[float] | None = None,
-                 resolution: int = 128, order: Sequence[tuple[int, int]] = carve.DEFAULT_ORDER,
-                 samples: int = 720,
+                 resolution: int | None = None,
+                 order: Sequence[tuple[int, int]] = carve.DEFAULT_ORDER, samples: int = 720,
                  effector: EndEffector | EndEffectorRealization | None = None,
                  progress: Progress | None = None, verify: bool = True,
                  bed_mm: tuple = DEFAULT_BED_MM, with_guide: bool = True,
@@ -415,7 +415,7 @@ def export_parts(joint_factors: np.ndarray, points: np.ndarray, radius: float, *
 
 def carve_design_spaces(joint_factors: np.ndarray, points: np.ndarray, radius: float,
                         space_radius: float | Sequence[float], *, spec: PartSpec | None = None,
-                        resolution: int = 128,
+                        resolution: int | None = None,
                         order: Sequence[tuple[int, int]] = carve.DEFAULT_ORDER,
                         effector: EndEffector | EndEffectorRealization | None = None,
                         progress: Progress | None = None,
@@ -423,6 +423,7 @@ def carve_design_spaces(joint_factors: np.ndarray, points: np.ndarray, radius: f
     """Carve capsule design spaces of ``space_radius`` (design units; see
     :func:`voxelspace.default_spaces`) in ``order`` with joint zones sized for the hardware of
     ``spec``, and mesh them (None where a space is too thin to mesh). Meshes in home frames.
+    ``resolution``: voxels along a space (None: :func:`voxelspace.auto_resolution`).
     With an ``effector`` (as in :func:`export_parts`) link 3's space covers its bars ``S_3 L``,
     ``R E_3`` and P (:func:`endlink.link_space`), and P, fixed in link 3, is removed with its
     sweep from every other space before the pairwise differences."""
@@ -430,6 +431,7 @@ def carve_design_spaces(joint_factors: np.ndarray, points: np.ndarray, radius: f
     spec = spec or PartSpec()
     scale = design_scale(pts, spec.size_mm)
     rs = resolve_spec(spec, float(radius), scale)
+    resolution = resolution or voxelspace.auto_resolution(pts, space_radius)
     spaces = voxelspace.default_spaces(pts, space_radius, resolution=resolution)
     bars, fixed = None, []
     if effector is not None:
@@ -441,6 +443,7 @@ def carve_design_spaces(joint_factors: np.ndarray, points: np.ndarray, radius: f
     cv = carve.carve(joint_factors, pts, spaces, keep_radius=float(radius),
                      joint_radius=rs.boss_radius_mm / scale * 1.1, order=order, bars=bars,
                      fixed=fixed, progress=stage(progress, 0.0, 0.9))
+    cv.report["resolution"] = resolution  # the automatic choice is worth reporting
     bodies = [_carved_body(sp) for sp in cv.spaces]
     if progress is not None:
         progress(1.0, "carved spaces meshed")

@@ -121,6 +121,33 @@ def default_spaces(points: np.ndarray, radius: float | Sequence[float],
     return [capsule_space(pts[2 * i], pts[2 * i + 1], radii[i], resolution) for i in range(6)]
 
 
+#: Voxels per capsule radius that the automatic resolution aims for, over the thinnest
+#: space: with fewer, nothing is deep enough to mesh once the motion margin (which shrinks
+#: with the pitch) is taken off (tv8 at 96 voxels: 4 of 6 spaces; arc-sculpture at 128: 2).
+AUTO_VOXELS_PER_RADIUS = 4.5
+#: Resolutions the automatic choice picks from (cost grows with the cube).
+AUTO_RESOLUTIONS = (96, 128, 160, 192, 224, 256)
+
+
+def auto_resolution(points: np.ndarray, radius: float | Sequence[float],
+                    base_radius: float | None = None) -> int:
+    """Voxels along a design space for :func:`default_spaces` (same arguments): the smallest
+    of :data:`AUTO_RESOLUTIONS` that puts :data:`AUTO_VOXELS_PER_RADIUS` voxels across every
+    capsule's radius (the largest when none does)."""
+    pts = check_points(points).reshape(6, 2, 3)
+    if np.ndim(radius) == 0:
+        radii = np.array([base_radius if base_radius is not None else 2.0 * radius]
+                         + [radius] * 5, float)
+    else:
+        radii = np.asarray(radius, float)
+    if radii.shape != (6,) or not np.all(np.isfinite(radii) & (radii > 0)):
+        raise FabricationError("design-space radii must be positive and finite",
+                               "bad-parameters")
+    extent = np.linalg.norm(pts[:, 1] - pts[:, 0], axis=1) + 2.0 * radii
+    need = float(np.max(AUTO_VOXELS_PER_RADIUS * extent / radii))
+    return next((r for r in AUTO_RESOLUTIONS if r >= need), AUTO_RESOLUTIONS[-1])
+
+
 def check_points(points: np.ndarray) -> np.ndarray:
     """The offset polyline ``points`` as a float ``(12, 3)`` array; raises if not finite."""
     pts = np.asarray(points, float)

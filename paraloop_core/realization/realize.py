@@ -12,13 +12,13 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 
 from paraloop_core.algebra import dq
 from paraloop_core.errors import RealizationError
-from paraloop_core.linkage import loops
-from paraloop_core.realization import radii, verify
+from paraloop_core.realization import verify
 from paraloop_core.realization.collision import colliding_polylines
 from paraloop_core.realization.offsetting import (
     DIGITS,
@@ -125,67 +125,6 @@ def design_space_radii(dist: np.ndarray, rho: float, bars: np.ndarray = _PAIR_BA
         cap = np.where(bars[:, other] >= 0, dist / 2.0, np.where(mesh, dist, dist - rho))
         np.minimum.at(radii, bar[bar >= 0], cap[bar >= 0])
     return radii
-
-
-def link_segments(r: Realization) -> np.ndarray:
-    """Bars ``(6, 2, 3)``: ``[S_i, E_i]`` of link i at home (base frame)."""
-    return r.points.reshape(6, 2, 3)
-
-
-def link_geometry(r: Realization, t: np.ndarray) -> np.ndarray:
-    """Each link's centre line at parameters ``t`` ``(T,)``: ``(T, 6, 4, 3)`` =
-    ``[mid pin A_{i-1}, S_i, E_i, mid pin A_i]`` (bar plus its two half-pins), base frame."""
-    pts = r.points
-    mid = 0.5 * (pts[1::2] + np.roll(pts[0::2], -1, axis=0))  # midpoint of pin i on A_i
-    home = np.stack([np.roll(mid, 1, axis=0), pts[0::2], pts[1::2], mid], axis=1)  # (6, 4, 3)
-    pose = loops.link_poses(r.joint_factors, t)  # (T, 6, 8)
-    return dq.transform_points(pose[:, :, None, :], home[None])
-
-
-def _edge_label(e: int) -> str:
-    i = e // 2
-    return f"S{i}E{i}" if e % 2 == 0 else f"E{i}S{(i + 1) % 6}"
-
-
-def realization_to_dict(r: Realization) -> dict:
-    """JSON-ready dict of a :class:`Realization` (``t`` is null where the minimum is at home)."""
-    pairs = [
-        {
-            "edges": [int(e1), int(e2)],
-            "labels": [_edge_label(int(e1)), _edge_label(int(e2))],
-            "links": [int(la), int(lb)],
-            "min_distance": float(dist),
-            "lower_bound": float(low),
-            "t": None if np.isinf(t) else float(t),
-        }
-        for (e1, e2, la, lb), dist, low, t in zip(r.pairs, r.pair_distance, r.pair_lower,
-                                                   r.pair_t, strict=True)
-    ]
-    return {
-        "points": r.points.tolist(),
-        "radius": r.radius,
-        "separation": r.separation,
-        "pairs": pairs,
-        "min_clearance": r.min_clearance,
-        "certified_clearance": r.certified_clearance,
-        "tolerance": r.tolerance,
-        "relative_tolerance": verify.RELATIVE,
-        "joint_pairs": [{"edges": [int(e1), int(e2)], "labels": [_edge_label(int(e1)),
-                                                                   _edge_label(int(e2))],
-                         "lower_bound": float(lo)}
-                        for (e1, e2, _, _), lo in zip(r.joint_pairs, r.joint_lower,
-                                                       strict=True)],
-        "design_space_radii": r.design_space_radii.tolist(),
-        "certified_radii": radii.radii_to_dict(radii.certified_radii(r.pairs, r.pair_lower,
-                                                                     r.radius)),
-        "stats": {key: (float(v) if key == "length_ratio" else int(v))
-                  for key, v in r.stats.items()},
-        "offsets": [int(o) for o in r.offsets],
-        "shifts": [int(s) for s in r.shifts],
-        "shift_step": r.length / r.p,
-        "initial_length": r.length,
-        "thin_polyline": r.thin.tolist(),
-    }
 
 
 def _free_candidates(n: int, colliding: Callable[[int, int], np.ndarray]) -> Iterator[int]:
@@ -318,12 +257,8 @@ class Search:
         ``budget``: work units (:meth:`work`) after which the search stops with reason
         ``budget`` (checked between candidates): deterministic, unlike a wall-clock limit."""
         u = self.unit
-        self.v0, self.length = v0, length = self.initial()
-        self.d = d = d_fraction * length if d is None else d / u
-        self.rho = rho = rho_fraction * d if rho is None else rho / u
-        self.p = p
-        check_params(p, rho * u, d * u, max_k)
-        self.start()
+        v0, length, d, rho = self.setup(p=p, rho=rho, d=d, d_fraction=d_fraction,
+                                        rho_fraction=rho_fraction, max_k=max_k)
         free = np.array([i not in (self.fixed or {}) for i in range(6)])
         patterns = DIGITS[np.all(DIGITS[:, ~free] == 0, axis=1)][1:]  # 3^(6-f) - 1, index order
         tau_unit = np.where(patterns == 2, -1, patterns)
@@ -375,6 +310,52 @@ class Search:
         raise RealizationError(self.cap_message.format(
             max_k=max_k, checks=checks, steps_back=steps_back, **where), "cap-reached")
 
+    def setup(self, *, p: float, rho: float | None, d: float | None, d_fraction: float,
+              rho_fraction: float, max_k: int) -> tuple[np.ndarray, float, float, float]:
+        """Step 1 and the checked parameters (search units): ``(v0, l, d, rho)``."""
+        u = self.unit
+        self.v0, self.length = v0, length = self.initial()
+        self.d = d = d_fraction * length if d is None else d / u
+        self.rho = rho = rho_fraction * d if rho is None else rho / u
+        self.p = p
+        check_params(p, rho * u, d * u, max_k)
+        self.start()
+        return v0, length, d, rho
+
+    def run_hint(self, shifts: np.ndarray, offsets: np.ndarray, *, p: float,
+                 rho: float | None, d: float | None, d_fraction: float, rho_fraction: float,
+                 max_k: int, certify: bool = True) -> Any:
+        """Warm start: the shift pattern ``shifts`` ``(6,)`` and ``offsets`` ``(6,)`` of a
+        realization of a nearby loop (the previous drag step), tried alone on this loop and
+        certified exactly like :meth:`run`'s answers (thin check, exact minima, sound bounds);
+        the :meth:`result`, or None when they do not give a collision-free realization here.
+        Without ``certify`` the sound bounds are skipped and only the vertices ``(12, 3)``
+        (design units) are returned: a drag preview, never a certificate."""
+        tau = np.asarray(shifts, int)
+        seqs = np.flatnonzero(np.all(OFFSET_WAYS[DIGITS] == np.asarray(offsets, int), axis=1))
+        if tau.shape != (6,) or len(seqs) != 1:
+            raise RealizationError("a warm start needs six shifts and six offsets in "
+                                   "{-1, 0, 1}", "bad-parameters")
+        v0, length, _, _ = self.setup(p=p, rho=rho, d=d, d_fraction=d_fraction,
+                                      rho_fraction=rho_fraction, max_k=max_k)
+        k = int(np.abs(tau).max())
+        if k > max_k or any(tau[i] for i in self.fixed or {}):
+            return None
+        polys = v0 + (tau * length / p)[None, :, None] * self.lp.u
+        if self.colliding(k, tau[None], polys)(0, 1)[0]:
+            return None
+        step = self.step4(polys[0])
+        seq, _ = step.run(seqs)
+        if not certify:
+            return None if seq is None else step.points(seq) * self.unit
+        proof = None if seq is None else self.verify(step, seq)
+        if proof is None:
+            return None
+        stats = {"k": k, "collision_checks": 1, "steps_back": 0, "min_distance_computations": 1,
+                 "offset_rank": 0, "collision_checks_sequential": 1,
+                 "refuted_by_verification": 0, "work": self.work(1, 1), "warm_start": 1}
+        return self.result(step, seq, tau, polys[0], stats, proof)
+
     def work(self, checked: int, sequences: int) -> int:
         """Work units so far: thin polylines ``checked``, step-4 ``sequences`` examined (each
         :data:`SEQUENCE_WORK`) and certificate cells (:data:`CELLS_PER_WORK` per unit)."""
@@ -405,3 +386,15 @@ def realize(
     return Search(joint_factors, fixed).run(p=p, rho=rho, d=d, d_fraction=d_fraction,
                                             rho_fraction=rho_fraction, max_k=max_k,
                                             budget=budget)
+
+
+def warm_start(joint_factors: np.ndarray, shifts: np.ndarray, offsets: np.ndarray, *,
+               p: float = 10.0, rho: float | None = None, d: float | None = None,
+               d_fraction: float = 0.01, rho_fraction: float = 0.25,
+               fixed: dict[int, float] | None = None, max_k: int = 50) -> Realization | None:
+    """The realization of ``joint_factors`` with the ``shifts`` and ``offsets`` of a nearby
+    loop's realization (e.g. the previous step of a drag), certified as :func:`realize`'s;
+    None when they do not realize this loop (then run :func:`realize`)."""
+    return Search(joint_factors, fixed).run_hint(shifts, offsets, p=p, rho=rho, d=d,
+                                                 d_fraction=d_fraction,
+                                                 rho_fraction=rho_fraction, max_k=max_k)

@@ -344,3 +344,17 @@ def realize_with_effector(
     search = _EffectorSearch(joint_factors, fixed, effector, ee_clearance)
     return search.run(p=p, rho=rho, d=d, d_fraction=d_fraction, rho_fraction=rho_fraction,
                       max_k=max_k, budget=budget)
+
+
+def warm_start_with_effector(joint_factors: np.ndarray, effector: EndEffector,
+                             shifts: np.ndarray, offsets: np.ndarray, *, p: float = 10.0,
+                             rho: float | None = None, d: float | None = None,
+                             d_fraction: float = 0.01, rho_fraction: float = 0.25,
+                             fixed: dict[int, float] | None = None, max_k: int = 50,
+                             ee_clearance: float | None = None
+                             ) -> EndEffectorRealization | None:
+    """:func:`realize.warm_start` for a loop carrying ``effector`` (as
+    :func:`realize_with_effector`); None when the hint does not realize it."""
+    search = _EffectorSearch(joint_factors, fixed, effector, ee_clearance)
+    return search.run_hint(shifts, offsets, p=p, rho=rho, d=d, d_fraction=d_fraction,
+                           rho_fraction=rho_fraction, max_k=max_k)

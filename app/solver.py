@@ -1,0 +1,65 @@
+"""The studio's solves: full updates cached (undo/redo is instant) and warm-started from the
+last realized solution; drag previews without a realization search."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from collections import OrderedDict
+from collections.abc import Callable
+
+import numpy as np
+
+from app.state import absolute_mesh
+from paraloop_core import design as design_mod
+from paraloop_core import pipeline
+from paraloop_core.design import Design
+from paraloop_core.errors import RealizationError
+
+CACHE_SIZE = 16
+
+
+class Solver:
+    """``solve(design, full, current)`` for the worker thread only."""
+
+    def __init__(self) -> None:
+        self._cache: OrderedDict[str, tuple[pipeline.Solution, str]] = OrderedDict()
+        self.realized: pipeline.Solution | None = None  # warm start of the next realization
+        self.preview_points: np.ndarray | None = None  # the last preview's linkage, if any
+
+    def solve(self, design: Design, full: bool, current: pipeline.Solution | None,
+              progress: Callable[[float, str], None] | None = None
+              ) -> tuple[pipeline.Solution, str]:
+        """``(solution, note)`` of ``design``; the note says why there is no realization.
+
+        A preview (``full`` False) reuses ``current``'s mu instead of re-running a criterion's
+        scan and moves the last realization along when the exact minima clear it
+        (:attr:`preview_points`, :func:`pipeline.warm_preview`; certified only by the full
+        update on release). The studio keeps the user's loop: fallbacks only thin the bars."""
+        hint = self.realized
+        if not full:
+            m = design.motion
+            if m.criterion is not None and current is not None:
+                motion = dataclasses.replace(m, criterion=None, mu=current.mu)
+                design = dataclasses.replace(design, motion=motion)
+            sol = pipeline.solve(design, realize=False)
+            self.preview_points = None if hint is None else pipeline.warm_preview(sol, hint)
+            return sol, ""
+        data = design_mod.design_to_dict(absolute_mesh(design))  # a mesh path per file
+        del data["name"], data["locked"]  # neither changes the solution
+        key = json.dumps(data, sort_keys=True)
+        if key not in self._cache:
+            try:
+                sol = pipeline.solve(design, other_loops=False, progress=progress, hint=hint)
+                report = sol.realization_report or {}
+                note = (f"No realization: {report.get('reason')}"
+                        if report.get("status") == "not_found" else "")
+                self._cache[key] = (sol, note)
+            except RealizationError as exc:
+                self._cache[key] = (pipeline.solve(design, realize=False),
+                                    f"No realization: {exc}")
+            while len(self._cache) > CACHE_SIZE:
+                self._cache.popitem(last=False)
+        self._cache.move_to_end(key)
+        sol, note = self._cache[key]
+        return dataclasses.replace(sol, design=design), note

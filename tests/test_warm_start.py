@@ -1,0 +1,93 @@
+"""Warm starts of the realization (a drag step): the previous realization's shifts and offsets
+tried alone on a nearby loop, certified like a cold answer; the drag preview's vertices."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from paraloop_core import design as design_mod
+from paraloop_core import pipeline
+from paraloop_core.design import Pose
+from paraloop_core.errors import RealizationError
+from paraloop_core.realization import realize
+from tests.independent.dense_check import check_result
+
+TV8 = Path(__file__).resolve().parent.parent / "assets" / "designs" / "tv8.json"
+
+
+def moved(design, i: int, delta) -> design_mod.Design:
+    p = design.poses[i]
+    pose = Pose(p.position + np.asarray(delta, float), p.wxyz.copy())
+    return dataclasses.replace(design, poses=design.poses[:i] + (pose,) + design.poses[i + 1:])
+
+
+@pytest.fixture(scope="module")
+def tv8():
+    design = design_mod.load_design(TV8)
+    return design, pipeline.solve(design, other_loops=False)
+
+
+def test_same_loop_warm_start_reproduces_the_cold_answer(tv8):
+    _, sol = tv8
+    real = sol.realization
+    warm = realize.warm_start(sol.loop.joint_factors, real.shifts, real.offsets)
+    assert warm is not None and warm.stats["warm_start"] == 1
+    assert np.allclose(warm.points, real.points, atol=1e-12)
+    assert np.allclose(warm.pair_lower, real.pair_lower, atol=1e-9)
+    assert warm.certified_clearance >= 2 * warm.radius
+
+
+@pytest.mark.parametrize("step", [0.002, 0.01])
+def test_warm_realization_of_a_drag_step_is_certified(tv8, step):
+    design, sol = tv8
+    new = pipeline.solve(moved(design, 3, [step, -step, 0.5 * step]), realize=False)
+    warm = pipeline.warm_realization(new, sol)
+    assert warm is not None and warm.realization_report["warm_start"]
+    assert warm.realization.certified_clearance >= 2 * warm.realization.radius
+    # an independent dense computation agrees with the certificate
+    rep = check_result(pipeline.result_to_dict(warm))
+    assert rep["status"] == "checked" and not rep["disagreements"], rep["disagreements"]
+    # the drag preview shows the same vertices
+    pts = pipeline.warm_preview(new, sol)
+    assert pts is not None and np.allclose(pts, warm.realization.points, atol=1e-9)
+
+
+def test_solve_with_hint_is_warm_and_without_is_cold(tv8):
+    design, sol = tv8
+    step = moved(design, 3, [0.002, 0.0, 0.0])
+    warm = pipeline.solve(step, other_loops=False, hint=sol)
+    cold = pipeline.solve(step, other_loops=False)
+    assert warm.realization_report.get("warm_start") and "warm_start" not in \
+        cold.realization_report
+    assert cold.realization.certified_clearance >= 2 * cold.realization.radius
+
+
+def test_a_hint_that_does_not_clear_is_refused(tv8):
+    _, sol = tv8
+    real = sol.realization
+    jf = sol.loop.joint_factors
+    found = 0
+    for offsets in ([1, 1, 1, 1, 1, 1], [-1, -1, -1, -1, -1, -1], [0, 0, 0, 0, 0, 0]):
+        for k in (0, 1, 3):
+            shifts = np.full(6, k)
+            out = realize.warm_start(jf, shifts, np.array(offsets))
+            if out is not None:  # whatever it returns is certified
+                found += 1
+                assert out.certified_clearance >= 2 * out.radius
+    assert found < 9  # some of these patterns collide or fail the clearance
+    with pytest.raises(RealizationError):
+        realize.warm_start(jf, real.shifts, np.array([2, 0, 0, 0, 0, 0]))
+
+
+def test_other_loop_or_no_realization_gives_no_warm_start(tv8):
+    design, sol = tv8
+    other = pipeline.solve(dataclasses.replace(design, loop=(design.loop + 1) % 9),
+                           realize=False)
+    assert pipeline.warm_realization(other, sol) is None
+    assert pipeline.warm_preview(other, sol) is None
+    bare = pipeline.solve(design, realize=False)
+    assert pipeline.warm_realization(sol, bare) is None
