@@ -225,7 +225,8 @@ def chain_sweep(centre: np.ndarray, ends: list[np.ndarray], axes: np.ndarray,
 
     ``centre`` ``(k, C, 8)``: the k factors (outermost first, unit primal parts, continuous
     along each cell) at the cell centres; ``ends`` their values at the cell ends; ``axes``
-    ``(k, 6)`` their unit Plücker axes; ``points`` ``(C or 1, P, 3)``. Each factor's half angle
+    ``(k, 6)`` (or ``(k, C, 6)``, per cell) their unit Plücker axes; ``points`` ``(C or 1, P,
+    3)``. Each factor's half angle
     sweeps ``delta_m`` (< pi), the angle between centre and end (monotone: a line in its plane
     ``span(1, axis)``); telescoping the product, a point within ``radius`` of a given one moves
     at most ``sum_m 2 sin(min(delta_m, pi/2)) (dist(y_m, axis_m) + radius)`` (``y_m``: the point
@@ -240,7 +241,8 @@ def chain_sweep(centre: np.ndarray, ends: list[np.ndarray], axes: np.ndarray,
     y = np.broadcast_to(points, (centre.shape[1],) + points.shape[1:])
     move = np.zeros(y.shape[:2])
     for m in reversed(range(len(centre))):  # innermost factor first (k <= 3)
-        rho = np.linalg.norm(np.cross(y, axes[m, :3]) - axes[m, 3:], axis=-1)
+        ax = axes[m][:, None, :] if axes.ndim == 3 else axes[m]
+        rho = np.linalg.norm(np.cross(y, ax[..., :3]) - ax[..., 3:], axis=-1)
         move += chord[m][:, None] * (rho + radius)
         y = dq.transform_points(centre[m][:, None, :], y)
     return move, y

@@ -48,6 +48,9 @@ RELATIVE = 1e-4
 _START_CELLS = 64
 _MAX_CELLS = 200_000
 _MAX_ROUNDS = 48
+#: Pairs bounded together (one batch of cells): large enough to amortize the array calls,
+#: small enough that a refuted pair (the search stops there) wastes little work after it.
+_BATCH = 8
 
 
 @dataclass(frozen=True)
@@ -85,105 +88,151 @@ def pair_bounds(joint_factors: np.ndarray, fixed: np.ndarray, moving: np.ndarray
     n = len(fixed)
     hints = np.empty((n, 0)) if hints is None else np.asarray(hints, float).reshape(n, -1)
     (a, b), _ = charts(jf)
-    out = np.array([np.inf, np.inf, -np.inf, 0.0])[:, None].repeat(n, axis=1)
-    cache: dict[tuple[int, int], tuple[_Chain, _Chain]] = {}
-    for row in range(n):  # a few dozen pairs; each one is vectorized over its cells
-        key = (int(links[row, 0]), int(links[row, 1]))
-        if key not in cache:
-            chain = loops.relative_chain(jf, *key)
-            lin = poly.reparametrize(chain, a, b)
-            lin = lin / np.abs(lin[..., :4]).max(axis=(-2, -1), keepdims=True)
-            axes = loops.factor_axes(chain[:, 0])
-            # chart s and chart w = 1/s (w L(1/w): reversed coefficients)
-            cache[key] = (_Chain(lin, axes), _Chain(lin[:, ::-1], axes))
-        h = hints[row][~np.isnan(hints[row])]
-        s_hint = np.where(np.isinf(h), np.inf, (h - b) / a)
-        upper, s_best, lower, cells = _one_pair(cache[key], fixed[row], moving[row], tol,
-                                                s_hint, need)
-        out[:, row] = upper, (np.inf if np.isinf(s_best) else a * s_best + b), lower, cells
-        if upper < need:
+    keys, chain_of = np.unique(links, axis=0, return_inverse=True)
+    chains = _Chains.of(jf, keys, a, b)
+    chain_of = chain_of.ravel()
+    upper, s_best = np.full(n, np.inf), np.full(n, np.inf)
+    lower, cells = np.full(n, -np.inf), np.zeros(n, int)
+    for lo in range(0, n, _BATCH):  # batches in the given order: a refutation stops early
+        part = slice(lo, min(lo + _BATCH, n))
+        upper[part], s_best[part], lower[part], cells[part] = _branch_and_bound(
+            chains, chain_of[part], fixed[part], moving[part], tol, (hints[part] - b) / a,
+            need)
+        if (upper[part] < need).any():
             break
-    return PairBounds(out[0], out[1], out[2], out[3].astype(int))
-
-
-def _one_pair(charts: tuple[_Chain, _Chain], fixed: np.ndarray, moving: np.ndarray,
-              tol: float, s_hint: np.ndarray, need: float) -> tuple[float, float, float, int]:
-    """Branch and bound of one pair over both charts: ``(upper, s, lower, cells)``."""
-    # the exact candidates (hints) only seed the best distance: cells prove the bound
-    inner = np.abs(s_hint) <= 1
-    w_hint = np.where(np.isinf(s_hint), 0.0, 1.0 / np.where(inner, 1.0, s_hint))
-    seeds = [(0, s_hint[inner]), (1, w_hint[~inner])]
-    best, best_s = np.inf, np.inf
-    for chart, x in seeds:
-        if x.size:
-            d, _ = _cells(charts[chart], fixed, moving, x, np.zeros_like(x))
-            k = int(np.argmin(d))
-            if d[k] < best:
-                best, best_s = float(d[k]), _to_s(chart, float(x[k]))
-    r0 = 1.0 / _START_CELLS
-    centres = -1.0 + r0 * (2 * np.arange(_START_CELLS) + 1)
-    front = [(0, centres, np.full(_START_CELLS, r0)), (1, centres, np.full(_START_CELLS, r0))]
-    lower, visited = np.inf, 0
-    for _ in range(_MAX_ROUNDS):
-        evaluated = []
-        for chart, x, r in front:
-            if x.size:
-                d, m = _cells(charts[chart], fixed, moving, x, r)
-                low = np.full_like(d, -np.inf)
-                np.subtract(d, m, out=low, where=np.isfinite(m) & np.isfinite(d))
-                evaluated.append((chart, x, r, d, low))
-                k = int(np.argmin(d))
-                if d[k] < best:
-                    best, best_s = float(d[k]), _to_s(chart, float(x[k]))
-                visited += x.size
-        front = []
-        for chart, x, r, _d, low in evaluated:
-            # precise near the minimum; a pair proven clear of twice what is needed is
-            # done (its minimum is then known to lower precision: lower <= true <= upper)
-            open_ = (low < best - tol - RELATIVE * best) & ~((need > 0) & (low >= 2.0 * need))
-            if visited >= _MAX_CELLS:
-                open_[:] = False
-            lower = min(lower, float(low[~open_].min(initial=np.inf)))
-            x, r = x[open_], r[open_] / 2
-            front.append((chart, np.concatenate([x - r, x + r]), np.concatenate([r, r])))
-        if all(x.size == 0 for _, x, _ in front):
-            break
-        if best < need:  # refuted: an attained distance below what is needed
-            return best, best_s, -np.inf, visited
-    if any(x.size for _, x, _ in front):  # rounds exhausted: unbounded cells left (unsure)
-        lower = -np.inf
-    return best, best_s, min(lower, best), visited
-
-
-def _to_s(chart: int, x: float) -> float:
-    return x if chart == 0 else (np.inf if x == 0 else 1.0 / x)
+    # the work stops at the first pair (in the given order) refuted: later ones not reached
+    refuted = np.flatnonzero(upper < need)
+    if refuted.size:
+        late = np.arange(n) > refuted[0]
+        upper[late], s_best[late], lower[late], cells[late] = np.inf, np.inf, -np.inf, 0
+    t = np.where(np.isinf(s_best), np.inf, a * s_best + b)
+    return PairBounds(upper, t, lower, cells)
 
 
 @dataclass(frozen=True)
-class _Chain:
-    """One chart of a relative motion: linear factors ``(k, 2, 8)`` (ascending in the chart
-    variable, the motion is their product) and their unit Plücker axes ``(k, 6)``."""
+class _Chains:
+    """The relative motions of the link pairs, both charts: ``lin_s`` / ``lin_w`` ``(K, 3, 2,
+    8)`` linear factors (ascending in the chart variable ``s`` / ``w = 1/s``: reversed
+    coefficients; the motion is their product, outermost first) and unit Plücker axes
+    ``axes`` ``(K, 3, 6)``. Chains of fewer than three factors are padded with the constant
+    factor 1 innermost: it never moves a point, so every pair runs in one batch."""
 
-    lin: np.ndarray
+    lin_s: np.ndarray
+    lin_w: np.ndarray
     axes: np.ndarray
 
+    @staticmethod
+    def of(jf: np.ndarray, keys: np.ndarray, a: float, b: float) -> _Chains:
+        shape = (len(keys), 3)
+        lin_s, lin_w = np.zeros(shape + (2, 8)), np.zeros(shape + (2, 8))
+        lin_s[..., 0, 0] = lin_w[..., 0, 0] = 1.0
+        axes = np.zeros(shape + (6,))
+        axes[..., 2] = 1.0
+        for c, (i, j) in enumerate(keys):  # at most 15 link pairs: set-up only
+            chain = loops.relative_chain(jf, int(i), int(j))
+            lin = poly.reparametrize(chain, a, b)
+            lin = lin / np.abs(lin[..., :4]).max()
+            k = len(chain)
+            lin_s[c, :k], lin_w[c, :k] = lin, lin[:, ::-1]
+            axes[c, :k] = loops.factor_axes(chain[:, 0])
+        return _Chains(lin_s, lin_w, axes)
 
-def _cells(chain: _Chain, fixed: np.ndarray, moving: np.ndarray, x: np.ndarray,
-           r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+
+def _branch_and_bound(chains: _Chains, chain_of: np.ndarray, fixed: np.ndarray,
+                      moving: np.ndarray, tol: float, s_hints: np.ndarray, need: float
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Branch and bound of all pairs at once over both charts: per pair ``(upper, s, lower,
+    cells)``. Each pair's cells open and close on its own best distance, exactly as if the
+    pairs ran one by one; cells are kept in pair order, chart s before chart w."""
+    n = len(fixed)
+    best, best_s = np.full(n, np.inf), np.full(n, np.inf)
+    lower, visited = np.full(n, np.inf), np.zeros(n, int)
+    done = np.zeros(n, bool)
+
+    def evaluate(chart: np.ndarray, x: np.ndarray, r: np.ndarray, row: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray]:
+        c = chain_of[row]
+        lin = np.where((chart == 0)[:, None, None, None], chains.lin_s[c], chains.lin_w[c])
+        d, m = _cells(lin, chains.axes[c], fixed[row], moving[row], x, r)
+        # the first smallest distance of each pair improves its best (ties: earlier cell)
+        order = np.lexsort((np.arange(len(d)), d, row))
+        first = order[np.r_[True, row[order][1:] != row[order][:-1]]]
+        better = first[d[first] < best[row[first]]]
+        best[row[better]] = d[better]
+        best_s[row[better]] = np.where(chart[better] == 0, x[better], np.where(
+            x[better] == 0, np.inf, 1.0 / np.where(x[better] == 0, 1.0, x[better])))
+        return d, m
+
+    # the exact candidates (hints) only seed the best distance: cells prove the bound
+    rows, cols = np.nonzero(~np.isnan(s_hints))
+    h = s_hints[rows, cols]
+    inner = np.abs(h) <= 1
+    w = np.where(np.isinf(h), 0.0, 1.0 / np.where(inner | np.isinf(h), 1.0, h))
+    seed = np.lexsort((~inner, rows))  # per pair: chart s seeds, then chart w
+    if seed.size:
+        evaluate(np.where(inner, 0, 1)[seed], np.where(inner, h, w)[seed],
+                 np.zeros(seed.size), rows[seed])
+    r0 = 1.0 / _START_CELLS
+    centres = -1.0 + r0 * (2 * np.arange(_START_CELLS) + 1)
+    row = np.repeat(np.arange(n), 2 * _START_CELLS)
+    chart = np.tile(np.repeat([0, 1], _START_CELLS), n)
+    x = np.tile(centres, 2 * n)
+    r = np.full(x.size, r0)
+    for _ in range(_MAX_ROUNDS):
+        d, m = evaluate(chart, x, r, row)
+        low = np.full_like(d, -np.inf)
+        np.subtract(d, m, out=low, where=np.isfinite(m) & np.isfinite(d))
+        visited += np.bincount(row, minlength=n)
+        # precise near the minimum; a pair proven clear of twice what is needed is done (its
+        # minimum is then known to lower precision: lower <= true <= upper)
+        b = best[row]
+        open_ = (low < b - tol - RELATIVE * b) & ~((need > 0) & (low >= 2.0 * need))
+        open_ &= visited[row] < _MAX_CELLS
+        np.minimum.at(lower, row[~open_], low[~open_])
+        keep = np.flatnonzero(open_)
+        has_front = np.bincount(row[keep], minlength=n) > 0
+        done |= ~has_front  # finished: lower = min(lower, best) below
+        refuted = has_front & (best < need)  # an attained distance below what is needed
+        lower[refuted], done[refuted] = -np.inf, True
+        keep = keep[~refuted[row[keep]]]
+        if keep.size == 0:
+            break
+        # halve: per pair and chart, the left halves then the right halves (pair order kept)
+        ch, xk, rk, rw = chart[keep], x[keep], r[keep] / 2, row[keep]
+        key = np.concatenate([rw * 2 + ch, rw * 2 + ch])
+        half = np.concatenate([np.zeros(keep.size, int), np.ones(keep.size, int)])
+        order = np.lexsort((np.arange(2 * keep.size), half, key))
+        chart = np.concatenate([ch, ch])[order]
+        x = np.concatenate([xk - rk, xk + rk])[order]
+        r = np.concatenate([rk, rk])[order]
+        row = np.concatenate([rw, rw])[order]
+    else:  # rounds exhausted: pairs with unbounded cells left are unsure
+        lower[np.unique(row)] = -np.inf
+    finished = lower > -np.inf
+    lower[finished] = np.minimum(lower[finished], best[finished])
+    return best, best_s, lower, visited
+
+
+def _cells(lin: np.ndarray, axes: np.ndarray, fixed: np.ndarray, moving: np.ndarray,
+           x: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Distances at the cell centres ``x`` ``(C,)`` (upper, rounding included) and displacement
-    bounds ``(C,)`` over the cells of radii ``r`` (module docstring; ``inf`` where a factor
-    degenerates, which a generic motion never does)."""
+    bounds ``(C,)`` over the cells of radii ``r``, each cell with its chain's linear factors
+    ``lin`` ``(C, k, 2, 8)``, axes ``(C, k, 6)`` and segments ``fixed``, ``moving`` ``(C, 2,
+    3)`` (module docstring; ``inf`` where a factor degenerates, which a generic motion never
+    does)."""
     u = np.stack([x, x - r, x + r])  # (3, C)
-    q = chain.lin[:, None, None, 0] + chain.lin[:, None, None, 1] * u[None, :, :, None]
+    q = lin[None, :, :, 0] + lin[None, :, :, 1] * u[:, :, None, None]  # (3, C, k, 8)
+    q = q.transpose(2, 0, 1, 3)  # (k, 3, C, 8)
     pn = np.linalg.norm(q[..., :4], axis=-1, keepdims=True)  # (k, 3, C, 1)
     ok = np.all(pn[..., 0] > 1e-150, axis=(0, 1))
     q = q / np.where(pn > 1e-150, pn, 1.0)
-    disp, y = chain_sweep(q[:, 0], [q[:, 1], q[:, 2]], chain.axes, moving[None])
-    moment = chain.axes[:, 3:]
+    disp, y = chain_sweep(q[:, 0], [q[:, 1], q[:, 2]], axes.transpose(1, 0, 2), moving)
+    moment = axes[..., 3:]
     # rounding of the composed points and of the chords: far below 1e-12 of the frame's size
-    size = np.abs(fixed).max() + np.abs(moving).max() + 2.0 * np.abs(moment).sum()
-    slack = 1e-12 * size * (1.0 + disp.max(axis=1) / max(size, 1e-300))
-    d = segment_distance(fixed[0], fixed[1], y[:, 0], y[:, 1])
+    size = (np.abs(fixed).max(axis=(1, 2)) + np.abs(moving).max(axis=(1, 2))
+            + 2.0 * np.abs(moment).sum(axis=(1, 2)))
+    slack = 1e-12 * size * (1.0 + disp.max(axis=1) / np.maximum(size, 1e-300))
+    d = segment_distance(fixed[:, 0], fixed[:, 1], y[:, 0], y[:, 1])
     return (np.where(ok, d + slack, np.inf),
             np.where(ok, disp.max(axis=1) + 2.0 * slack, np.inf))
 
