@@ -188,8 +188,8 @@ def test_slider_moves_linkage(app, page, tmp_path):
 
 
 def test_loop_picker_switches_loop(app, page):
-    page.get_by_role("combobox", name="Loop").click()
-    page.get_by_role("option", name="4: AS").click()
+    page.get_by_role("combobox", name="6R loop").click()
+    page.get_by_role("option", name="loop 4 ·").click()
     assert wait_for(lambda: app.state.design.loop == 4)
     assert app.worker.wait_idle(30)
     assert app.solution.design.loop == 4

@@ -116,7 +116,8 @@ class Panels:
         with gui.add_folder("Design"):
             self.name = gui.add_text("Name", initial_value="", hint="the design's name (files "
                                      "and downloads are named after it)")
-            self.undo = gui.add_button("Undo", icon=viser.Icon.ARROW_BACK_UP)
+            self.undo = gui.add_button("Undo", icon=viser.Icon.ARROW_BACK_UP,
+                                       hint="undo the last edit (a whole drag is one edit)")
             self.redo = gui.add_button("Redo", icon=viser.Icon.ARROW_FORWARD_UP)
             self.save = gui.add_button("Save design", icon=viser.Icon.DEVICE_FLOPPY,
                                        hint="download the design file (JSON)")
@@ -193,7 +194,8 @@ class Panels:
             self.u = gui.add_slider("Cycle position", min=0.0, max=1.0, step=0.001,
                                     initial_value=0.0,
                                     hint="0 .. 1 runs once through the whole motion")
-            self.play = gui.add_checkbox("Play", initial_value=False)
+            self.play = gui.add_checkbox("Play", initial_value=False,
+                                         hint="animate the linkage through its cycle")
             self.speed = gui.add_slider("Speed", min=0.01, max=1.0, step=0.01,
                                         initial_value=0.1, hint="cycles per second")
         with gui.add_folder("View", expand_by_default=False):
@@ -318,7 +320,8 @@ class Panels:
                     h.remove()
                 gui = self.studio.server.gui
                 with self.locks_folder:
-                    self.locks = [gui.add_checkbox(f"Lock S{i}", initial_value=False)
+                    self.locks = [gui.add_checkbox(f"Lock S{i}", initial_value=False,
+                                                   hint="a locked target cannot be dragged")
                                   for i in range(n)]
                 for i, h in enumerate(self.locks):
                     h.on_update(handler(lambda _, i=i, h=h: self._set_lock(i, h)))

@@ -74,10 +74,16 @@ class FabricationPanel:
                     hint="longest side of the linkage in mm; 0 = automatic: the size at which "
                          "every part meets the printer profile (walls 2 mm, pin radius 1 mm, "
                          "bed 250 x 210 x 210 mm) and fits the bed"),
-                "clearance_mm": gui.add_number("Clearance (mm)", initial_value=fab.clearance_mm,
-                                               step=0.05, hint="joint clearance in mm"),
-                "print_in_place": gui.add_checkbox("Print in place", fab.print_in_place),
-                "ground": gui.add_checkbox("Grounding column", fab.ground),
+                "clearance_mm": gui.add_number(
+                    "Joint clearance (mm)", initial_value=fab.clearance_mm, step=0.05,
+                    hint="gap between a pin and its bore, in mm (your printer's tolerance)"),
+                "print_in_place": gui.add_checkbox(
+                    "Print in place", fab.print_in_place,
+                    hint="print the loop assembled (captive pins) instead of as parts"),
+                "ground": gui.add_checkbox(
+                    "Grounding column", fab.ground,
+                    hint="a column under the base link so the loop stands on a table "
+                         "(Sec. 5.3, loop grounding)"),
                 "space_radius_mm": gui.add_number(
                     "Space radius (mm)", initial_value=fab.space_radius_mm, step=1.0,
                     hint="design-space radius; 0 = the realization's (median), base link x2"),
@@ -86,14 +92,24 @@ class FabricationPanel:
                     hint="voxels along each design space; 0 = automatic (96..256, so that "
                          "every space is several voxels thick); carving is approximate, the "
                          "continuous-motion bound below keeps it safe"),
-                "order": gui.add_dropdown("Carving order", (*ORDER_PRESETS, CUSTOM),
-                                          initial_value=fab.order),
+                "order": gui.add_dropdown(
+                    "Carving order", (*ORDER_PRESETS, CUSTOM), initial_value=fab.order,
+                    hint="which link's space is carved by which first (Sec. 5.2): earlier "
+                         "links keep more room"),
                 "custom_order": gui.add_text("Custom pairs", fab.custom_order,
                                              hint="target-source, all 15 pairs: 0-1, 0-2, ..."),
-                "carved_parts": gui.add_checkbox("Parts from carved spaces", fab.carved_parts),
+                "carved_parts": gui.add_checkbox(
+                    "Parts from carved spaces", fab.carved_parts,
+                    hint="export each link as its carved design space instead of a bar"),
             }
-            self.carve = gui.add_button("Carve design spaces", icon=viser.Icon.CUBE)
-            self.export = gui.add_button("Export all (zip)", icon=viser.Icon.DOWNLOAD)
+            self.carve = gui.add_button(
+                "Carve design spaces", icon=viser.Icon.CUBE,
+                hint="the room each link may fill without ever touching the others (voxels, "
+                     "approximate; the bound below keeps it safe); runs in the background")
+            self.export = gui.add_button(
+                "Export all (zip)", icon=viser.Icon.DOWNLOAD,
+                hint="printable parts (STL, 3MF), assembly guide and a verification report; "
+                     "runs in the background")
             self.progress = gui.add_progress_bar(0.0, visible=False)
             self.progress_text = gui.add_markdown("")
             self.show = gui.add_checkbox("Show design spaces", initial_value=True)
