@@ -85,5 +85,5 @@ def frame_all(server: viser.ViserServer, points: np.ndarray, keep_direction: boo
             cam.max_orbit_distance = max(1e4, 100.0 * dist)
             cam.min_orbit_distance = min(0.01, 1e-3 * dist)
             cam.near, cam.far = 1e-3 * dist, 1e3 * dist
+            cam.position = position  # viser keeps the orientation: look_at must come after
             cam.look_at = look_at
-            cam.position = position
