@@ -18,56 +18,23 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from PIL import Image
+from viser import transforms as tf
+
+from app.worker import FULL
+from paraloop_core import design as design_mod
+from tests.browser_support import CHROMIUM, CHROMIUM_ARGS, playwright_sync, serve, wait_for
 
 pytestmark = pytest.mark.browser
-CHROMIUM = os.environ.get("CHROMIUM", "/usr/bin/chromium")
-_CI = os.environ.get("CI", "").lower() == "true"
-try:
-    from playwright import sync_api as playwright_sync
-except ImportError:  # pragma: no cover - depends on the machine
-    if _CI:
-        raise
-    pytest.skip("playwright is not installed", allow_module_level=True)
-if not Path(CHROMIUM).exists():
-    if _CI:
-        raise RuntimeError(f"{CHROMIUM} missing under CI=true (apt-get install chromium)")
-    pytest.skip(f"{CHROMIUM} not installed (apt-get install -y chromium)",
-                allow_module_level=True)
-
-import viser  # noqa: E402
-from PIL import Image  # noqa: E402
-from viser import transforms as tf  # noqa: E402
-
-from app import studio as studio_mod  # noqa: E402
-from app.worker import FULL  # noqa: E402
-from paraloop_core import design as design_mod  # noqa: E402
 
 DESIGN = Path(__file__).resolve().parent.parent / "assets" / "designs" / "tv8.json"
-CHROMIUM_ARGS = [
-    "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-    "--disable-background-networking", "--disable-component-update", "--disable-sync",
-]
-
-
-def wait_for(pred, timeout: float = 10.0, dt: float = 0.05) -> bool:
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if pred():
-            return True
-        time.sleep(dt)
-    return pred()
 
 
 @pytest.fixture(scope="module")
 def app(tmp_path_factory):
-    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     design = dataclasses.replace(design_mod.load_design(DESIGN), locked=(0, 1, 2))
-    studio = studio_mod.Studio(server, design,
-                               tmp_path_factory.mktemp("autosave") / "tv8.autosave.json")
-    assert studio.worker.wait_idle(30)
-    yield studio
-    studio.close()
-    server.stop()
+    with serve(design, tmp_path_factory.mktemp("autosave") / "tv8.autosave.json") as studio:
+        yield studio
 
 
 @pytest.fixture(scope="module")

@@ -25,29 +25,16 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import viser
+from PIL import Image
+from viser import transforms as tf
+
+from app import studio as studio_mod
+from app.state import autosave_path_for
+from paraloop_core import design as design_mod
+from tests.browser_support import CHROMIUM, CHROMIUM_ARGS, playwright_sync, serve, wait_for
 
 pytestmark = pytest.mark.browser
-CHROMIUM = os.environ.get("CHROMIUM", "/usr/bin/chromium")
-_CI = os.environ.get("CI", "").lower() == "true"
-try:
-    from playwright import sync_api as playwright_sync
-except ImportError:  # pragma: no cover - depends on the machine
-    if _CI:
-        raise
-    pytest.skip("playwright is not installed", allow_module_level=True)
-if not Path(CHROMIUM).exists():
-    if _CI:
-        raise RuntimeError(f"{CHROMIUM} missing under CI=true (apt-get install chromium)")
-    pytest.skip(f"{CHROMIUM} not installed (apt-get install -y chromium)",
-                allow_module_level=True)
-
-import viser  # noqa: E402
-from PIL import Image  # noqa: E402
-from viser import transforms as tf  # noqa: E402
-
-from app import studio as studio_mod  # noqa: E402
-from app.state import autosave_path_for  # noqa: E402
-from paraloop_core import design as design_mod  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 ASSETS = ROOT / "assets"
@@ -55,20 +42,7 @@ EXAMPLES = sorted(p.name for p in (ASSETS / "designs").glob("*.json"))
 TV8 = ASSETS / "designs" / "tv8.json"
 VIEWPORT = {"width": 1280, "height": 800}
 PANEL_WIDTH = 320  # viser's control panel, when its element cannot be found
-CHROMIUM_ARGS = [
-    "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-    "--disable-background-networking", "--disable-component-update", "--disable-sync",
-]
 RESTORE = re.compile(r"^Restore changes from \d{1,2}:\d{2}")
-
-
-def wait_for(pred, timeout: float = 10.0, dt: float = 0.05) -> bool:
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if pred():
-            return True
-        time.sleep(dt)
-    return pred()
 
 
 def free_port() -> int:
@@ -447,14 +421,9 @@ def test_autosave_survives_a_kill_and_restores_on_request(browser, tmp_path):
 # --- one in-process studio for save/load/undo and cancel ---------------------------------------
 @pytest.fixture(scope="module")
 def app(tmp_path_factory):
-    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
-    design = design_mod.load_design(TV8)
-    studio = studio_mod.Studio(server, design,
-                               tmp_path_factory.mktemp("autosave") / "tv8.autosave.json")
-    assert studio.worker.wait_idle(60)
-    yield studio
-    studio.close()
-    server.stop()
+    with serve(design_mod.load_design(TV8),
+               tmp_path_factory.mktemp("autosave") / "tv8.autosave.json") as studio:
+        yield studio
 
 
 @pytest.fixture(scope="module")

@@ -29,9 +29,11 @@ PART_FILES = {f"link_{i}.stl" for i in range(6)} | {"paraloop.3mf", "assembly.gl
     f"assembly_step_{k}.png" for k in range(1, 8)}
 
 
-def open_studio(name: str):
+def open_studio(name: str, autosave=None):
+    """A headless studio on the bundled example ``name``, settled."""
     server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
-    app = studio_mod.Studio(server, design_mod.load_design(DESIGNS / f"{name}.json"), None)
+    app = studio_mod.Studio(server, design_mod.load_design(DESIGNS / f"{name}.json"),
+                            autosave)
     settle(app)
     return server, app
 

@@ -11,7 +11,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import viser
 
 from app import camera
 from app import studio as studio_mod
@@ -20,9 +19,12 @@ from app.panels.design import loop_label, loop_of_label, score_text
 from app.scene import label_positions
 from app.state import rescaled
 from paraloop_core import design as design_mod
+from tests import test_studio_fabrication
+from tests.test_studio_fabrication import open_studio
 from tests.test_studio_server import click, gizmo, settle, upload
 
 DESIGNS = Path(__file__).resolve().parent.parent / "assets" / "designs"
+tv8 = test_studio_fabrication.tv8  # the fixture: the tv8 example in a headless studio
 
 
 def project(points, position, look_at, fov, size):
@@ -111,21 +113,6 @@ def test_loop_labels_are_readable():
     assert label == "loop 4 · angle-symmetric · score 77" and loop_of_label(label) == 4
     assert "near-singular" in loop_label(2, 3e-7, "near-singular")
     assert [score_text(v) for v in (77.3, 3.41, 0.052, 2e-7)] == ["77", "3.4", "0.052", "2e-07"]
-
-
-def open_studio(name: str, autosave=None):
-    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
-    app = studio_mod.Studio(server, design_mod.load_design(DESIGNS / f"{name}.json"), autosave)
-    settle(app)
-    return server, app
-
-
-@pytest.fixture
-def tv8():
-    server, app = open_studio("tv8")
-    yield app
-    app.close()
-    server.stop()
 
 
 def test_opening_frames_targets_path_and_linkage(tv8):
