@@ -33,15 +33,18 @@ class Solver:
         """``(solution, note)`` of ``design``; the note says why there is no realization.
 
         A preview (``full`` False) reuses ``current``'s mu instead of re-running a criterion's
-        scan and moves the last realization along when the exact minima clear it
-        (:attr:`preview_points`, :func:`pipeline.warm_preview`; certified only by the full
-        update on release). The studio keeps the user's loop: fallbacks only thin the bars."""
+        scan, fits a ``fit`` design from its first start only, and moves the last realization
+        along when the exact minima clear it (:attr:`preview_points`,
+        :func:`pipeline.warm_preview`; certified only by the full update on release). The
+        studio keeps the user's loop: fallbacks only thin the bars."""
         hint = self.realized
         if not full:
             m = design.motion
             if m.criterion is not None and current is not None:
                 motion = dataclasses.replace(m, criterion=None, mu=current.mu)
                 design = dataclasses.replace(design, motion=motion)
+            if m.method == "fit":  # a drag refits from the first start only; all on release
+                design = dataclasses.replace(design, evolution={**design.evolution, "starts": 1})
             sol = pipeline.solve(design, realize=False)
             self.preview_points = None if hint is None else pipeline.warm_preview(sol, hint)
             return sol, ""

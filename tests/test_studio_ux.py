@@ -217,3 +217,18 @@ def test_restore_offer_can_be_discarded(tmp_path):
     finally:
         app.close()
         server.stop()
+
+
+def test_a_fit_design_previews_from_one_start_and_fits_fully_on_release():
+    server, app = open_studio("sun-path-fit")
+    try:
+        starts = app.state.design.evolution["starts"]
+        assert starts > 1 and app.solution.fit.starts_tried == starts
+        p = app.state.design.poses[7].position
+        gizmo(app, 7, position=p + 0.02, phases=("update",))
+        assert app.solution.fit.starts_tried == 1  # the drag preview
+        gizmo(app, 7, position=p + 0.02, phases=("end",))
+        assert app.solution.fit.starts_tried == starts
+    finally:
+        app.close()
+        server.stop()
