@@ -235,7 +235,7 @@ class Studio:
                 self.scene.apply_layers(self.state.hidden)
         key = level if level >= PREVIEW and stale else FRAME
         self.timings[key].append(time.perf_counter() - start)
-        if level == FULL and self._frame_pending and self.solution is not None:
+        if level == FULL and self._frame_pending:  # targets alone if nothing solved yet
             self._frame_pending = False
             self.frame_all()
 
@@ -350,6 +350,9 @@ def offer_restore(studio: Studio, design_path: Path | None) -> str | None:
     if found is None or isinstance(found, str):
         return found
     design, mtime = found
+    same = design_mod.design_to_dict(absolute_mesh(design))
+    if same == design_mod.design_to_dict(absolute_mesh(studio.state.design)):
+        return None  # nothing unsaved: the edits were undone before the autosave
     studio.restore_offer = RestoreOffer(studio, design, mtime, studio.reframe)
     return (f"unsaved changes from {time.strftime('%H:%M', time.localtime(mtime))} found in "
             f"{studio.state.autosave_path}: the page offers to restore them")

@@ -232,3 +232,14 @@ def test_a_fit_design_previews_from_one_start_and_fits_fully_on_release():
     finally:
         app.close()
         server.stop()
+
+
+def test_no_restore_offer_when_the_autosave_equals_the_file(tmp_path):
+    autosave = tmp_path / "tv8.json"
+    design_mod.save_design(design_mod.load_design(DESIGNS / "tv8.json"), autosave)
+    server, app = open_studio("tv8", autosave)
+    try:
+        assert studio_mod.offer_restore(app, None) is None and app.restore_offer is None
+    finally:
+        app.close()
+        server.stop()
