@@ -33,8 +33,8 @@ class Solver:
         """``(solution, note)`` of ``design``; the note says why there is no realization.
 
         A preview (``full`` False) reuses ``current``'s mu instead of re-running a criterion's
-        scan, fits a ``fit`` design from its first start only, and moves the last realization
-        along when the exact minima clear it (:attr:`preview_points`,
+        scan, refits a ``fit`` design from the fit on screen (one start), and moves the last
+        realization along when the exact minima clear it (:attr:`preview_points`,
         :func:`pipeline.warm_preview`; certified only by the full update on release). The
         studio keeps the user's loop: fallbacks only thin the bars."""
         hint = self.realized
@@ -43,9 +43,9 @@ class Solver:
             if m.criterion is not None and current is not None:
                 motion = dataclasses.replace(m, criterion=None, mu=current.mu)
                 design = dataclasses.replace(design, motion=motion)
-            if m.method == "fit":  # a drag refits from the first start only; all on release
+            if m.method == "fit":  # a drag refits one start, from the fit on screen
                 design = dataclasses.replace(design, evolution={**design.evolution, "starts": 1})
-            sol = pipeline.solve(design, realize=False)
+            sol = pipeline.solve(design, realize=False, hint=current)
             self.preview_points = None if hint is None else pipeline.warm_preview(sol, hint)
             return sol, ""
         data = design_mod.design_to_dict(absolute_mesh(design))  # a mesh path per file

@@ -118,7 +118,8 @@ def solve(design: Design, *, realize: bool = True, other_loops: bool = True,
     work budget: :data:`FIRST_ATTEMPT_WORK`, :data:`FALLBACK_WORK`). ``progress(fraction,
     message)`` is called during a fit (it may raise to stop the fit). ``hint``: a solution of
     a nearby design (the previous drag step) whose realization is tried first on the same
-    loop (:func:`realize.warm_start`, certified as any other answer).
+    loop (:func:`realize.warm_start`, certified as any other answer) and whose fit starts the
+    first evolution start.
 
     Four-pose motions are designed in :func:`unit_length` (the factorization and the
     realization condition themselves); the singularity measure is unit-free in it too."""
@@ -129,8 +130,10 @@ def solve(design: Design, *, realize: bool = True, other_loops: bool = True,
     if design.motion.method == "fit":
         from paraloop_core.motion import evolution  # only needed for fitted motions
 
+        warm = None if hint is None or hint.fit is None else hint.fit.factors
         fit = evolution.fit_motion(poses, inertia_of(design),
-                                   evolution.evolution_settings(design.evolution), progress)
+                                   evolution.evolution_settings(design.evolution), progress,
+                                   warm)
         c_rel, pose_t, mu, reference = fit.motion_rel, fit.closest_t, None, fit.reference
     else:
         c_rel, pose_t, mu = _four_pose(design, dq.scale_lengths(poses, 1.0 / unit), unit)

@@ -41,7 +41,8 @@ class FitResult:
     frame); per target ``closest_t`` ``(m,)`` (``inf`` for S_0 unless the frame is free) and
     metric ``distances`` ``(m,)`` (the given inertia); ``cost`` = summed squared distances;
     ``cost_history`` / ``stage_history`` of the winning start; ``loops``: gaps i (targets
-    i -> i+1) still showing the loop phenomenon; ``loop_fixed``: the modified procedure ran."""
+    i -> i+1) still showing the loop phenomenon; ``loop_fixed``: the modified procedure ran;
+    ``factors`` ``(3, 8)`` of ``motion_rel`` (a warm start for a nearby fit)."""
 
     motion_rel: np.ndarray
     reference: np.ndarray
@@ -55,6 +56,7 @@ class FitResult:
     status: str
     loops: tuple[int, ...]
     loop_fixed: bool
+    factors: np.ndarray
 
 
 def check_targets(targets: np.ndarray, inertia: metric.Inertia) -> np.ndarray:
@@ -190,9 +192,10 @@ def _straighten(prob: Problem, fix: Problem, settings: EvolutionSettings,
 
 def evolve_starts(
     targets: np.ndarray, inertia: metric.Inertia, settings: EvolutionSettings,
-    progress: Callable[[float, str], None] | None = None,
+    progress: Callable[[float, str], None] | None = None, initial: np.ndarray | None = None,
 ) -> tuple[np.ndarray, list[StartResult]]:
-    """Run all starts; returns ``(world targets (m, 8) unit, results by start index)``."""
+    """Run all starts (start 0 from the factors ``initial`` ``(3, 8)`` when given); returns
+    ``(world targets (m, 8) unit, results by start index)``."""
     world = check_targets(targets, inertia)
     rel = dq.normalize(dq.mul(dq.conj(world[0]), world))
     rel[0] = dq.IDENTITY
@@ -202,8 +205,8 @@ def evolve_starts(
     if settings.loop_fix and settings.ordered:
         guides, real = with_virtual_targets(rel, inertia, settings.virtual)
         fix = Problem(rel, guides, real, inertia, prob.scale)
-    first = None
-    if settings.init == "four-pose":
+    first = None if initial is None else np.asarray(initial, float).reshape(3, 8)
+    if first is None and settings.init == "four-pose":
         m = len(rel)
         idx = settings.four_pose_indices or tuple(int(round(k * m / 4.0)) for k in range(4))
         if max(idx) >= m:
@@ -243,16 +246,17 @@ def best_start(results: list[StartResult]) -> StartResult | None:
 
 def fit_motion(
     targets: np.ndarray, inertia: metric.Inertia, settings: EvolutionSettings | None = None,
-    progress: Callable[[float, str], None] | None = None,
+    progress: Callable[[float, str], None] | None = None, initial: np.ndarray | None = None,
 ) -> FitResult:
     """Fit a rational cubic motion to world target poses ``(m, 8)`` (m >= 5, ordered unless
     ``settings.ordered`` is False; ``targets[0]`` = S_0 is hit exactly unless the frame is free).
+    ``initial``: factors ``(3, 8)`` of a nearby fit (``FitResult.factors``) for start 0.
 
     Raises :class:`FitError` (``too-few-poses``, ``duplicate-poses``, ``not-finite``,
     ``no-convergence``).
     """
     settings = settings or EvolutionSettings()
-    world, results = evolve_starts(targets, inertia, settings, progress)
+    world, results = evolve_starts(targets, inertia, settings, progress, initial)
     best = best_start(results)
     if best is None:
         counts = {s: sum(r.status == s for r in results) for s in ("unordered", "degenerate")}
@@ -271,7 +275,7 @@ def fit_motion(
         closest_t=t, distances=np.sqrt(np.maximum(d2, 0.0)), cost=float(np.sum(d2)),
         cost_history=list(best.cost_history), stage_history=list(best.stage_history),
         winning_start=best.index, starts_tried=len(results), status=best.status,
-        loops=best.loops, loop_fixed=best.loop_fixed,
+        loops=best.loops, loop_fixed=best.loop_fixed, factors=np.array(best.factors),
     )
 
 
