@@ -218,3 +218,18 @@ def test_coarsened_space_covers_the_fine_region():
         d = np.linalg.norm(fine.centers()[:, None] - coarse.centers()[None], axis=-1)
         assert np.all(d.min(axis=1) + fine.half_diagonal <= coarse.half_diagonal + 1e-12)
         assert coarse.occupancy.sum() <= fine.occupancy.sum()
+
+
+def test_auto_resolution_puts_voxels_across_the_thinnest_space():
+    from paraloop_core.fabrication.voxelspace import AUTO_VOXELS_PER_RADIUS, auto_resolution
+
+    pts = np.zeros((12, 3))
+    pts[1::2, 0] = 1.0  # six bars of length 1 along x (base link twice as thick by default)
+    for radius, want in ((0.05, 128), (0.03, 160), (0.02, 256), (0.005, 256)):
+        res = auto_resolution(pts, radius)
+        assert res == want
+        if res < 256:  # enough voxels across the thinnest (radius) capsule
+            assert res * radius / (1.0 + 2 * radius) >= AUTO_VOXELS_PER_RADIUS
+    assert auto_resolution(pts, [0.2] * 5 + [0.03]) == 160  # six radii: the thinnest decides
+    with pytest.raises(FabricationError):
+        auto_resolution(pts, 0.0)

@@ -138,7 +138,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    default=None,
                    help="carve design spaces of this radius (design units) as link bodies")
     p.add_argument("--resolution", type=outputs.int_range(8, 1024), default=None,
-                   help="voxels along a design space (8..1024; default: automatic, 96..256 "
+                   help="voxels along a design space (8..1024; default: automatic, 128..256 "
                         "so that every space is several voxels thick)")
     p.add_argument("--samples", type=outputs.int_range(8, 100_000), default=720,
                    help="verification samples (8..100000)")

@@ -89,7 +89,7 @@ class FabricationPanel:
                     hint="design-space radius; 0 = the realization's (median), base link x2"),
                 "resolution": gui.add_number(
                     "Voxels per space", initial_value=fab.resolution, min=0, max=256, step=8,
-                    hint="voxels along each design space; 0 = automatic (96..256, so that "
+                    hint="voxels along each design space; 0 = automatic (128..256, so that "
                          "every space is several voxels thick); carving is approximate, the "
                          "continuous-motion bound below keeps it safe"),
                 "order": gui.add_dropdown(

@@ -125,8 +125,9 @@ def default_spaces(points: np.ndarray, radius: float | Sequence[float],
 #: space: with fewer, nothing is deep enough to mesh once the motion margin (which shrinks
 #: with the pitch) is taken off (tv8 at 96 voxels: 4 of 6 spaces; arc-sculpture at 128: 2).
 AUTO_VOXELS_PER_RADIUS = 4.5
-#: Resolutions the automatic choice picks from (cost grows with the cube).
-AUTO_RESOLUTIONS = (96, 128, 160, 192, 224, 256)
+#: Resolutions the automatic choice picks from (cost grows with the cube). At least 128, the
+#: long-standing CLI default: at 96 sun-disc's carved parts (radius 0.2) were not watertight.
+AUTO_RESOLUTIONS = (128, 160, 192, 224, 256)
 
 
 def auto_resolution(points: np.ndarray, radius: float | Sequence[float],
