@@ -196,10 +196,12 @@ def test_fabrication_export_zip_download(app, page):
     button = page.get_by_role("button", name="Export all (zip)")
     button.wait_for(timeout=10_000)
     try:
-        with page.expect_download(timeout=180_000) as dl:
+        with page.expect_download(timeout=300_000) as dl:  # a loaded machine: ~20 s alone
             button.click()
     except playwright_sync.TimeoutError:
-        pytest.fail(f"no download; last notifications: {app.notifications[-3:]}")
+        pytest.fail(f"no download; job running: {app.jobs.busy}, progress: "
+                    f"{app.fabrication.progress_text.content!r}, last notifications: "
+                    f"{app.notifications[-3:]}")
     assert dl.value.suggested_filename.startswith("paraloop-")
     with zipfile.ZipFile(dl.value.path()) as zf:
         names = set(zf.namelist())
