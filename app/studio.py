@@ -209,11 +209,19 @@ class Studio:
                 if task == "mesh":
                     self.panels.effector.check_mesh(arg)
                 elif not self.jobs.start(task, lambda task=task, arg=arg:
-                                         self.fabrication.run(task, arg)):  # carve / export
+                                         self._guarded(self.fabrication.run, task, arg)):
                     self.notify(f"Cannot start the {task}", f"the {self.jobs.busy} is still "
                                 "running: wait for it or press Cancel job", error=True,
                                 cause="job")
         except Exception as exc:  # a bug, not bad input: keep serving and say so
+            traceback.print_exc()
+            self.notify("Internal error", f"{exc!r} (see the server log)", error=True)
+
+    def _guarded(self, fn: Any, *args: Any) -> None:
+        """Run a background job; a bug in it is reported in the page, not only in the log."""
+        try:
+            fn(*args)
+        except Exception as exc:
             traceback.print_exc()
             self.notify("Internal error", f"{exc!r} (see the server log)", error=True)
 

@@ -243,3 +243,14 @@ def test_no_restore_offer_when_the_autosave_equals_the_file(tmp_path):
     finally:
         app.close()
         server.stop()
+
+
+def test_a_bug_in_a_background_job_is_notified(tv8, monkeypatch):
+    def broken(task, arg):
+        raise RuntimeError("boom")
+
+    monkeypatch.setattr(tv8.fabrication, "run", broken)
+    click(tv8.fabrication.carve)
+    assert tv8.worker.wait_idle(30) and tv8.jobs.wait(30)
+    assert tv8.notifications[-1][0] == "Internal error" and "boom" in tv8.notifications[-1][1]
+    assert tv8.jobs.busy is None and not tv8.panels.cancel.visible
