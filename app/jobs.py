@@ -14,7 +14,12 @@ from collections.abc import Callable, Iterator
 
 
 class Cancelled(Exception):
-    """Raised from a progress callback: the user cancelled, or the design changed."""
+    """Raised from a progress callback: ``by_user`` (*Cancel job*), else the design changed
+    under the job (a newer edit supersedes it)."""
+
+    def __init__(self, by_user: bool) -> None:
+        super().__init__("stopped as you asked" if by_user else "the design changed")
+        self.by_user = by_user
 
 
 class Jobs:
@@ -80,7 +85,7 @@ class Jobs:
     def check(self) -> None:
         """Raise :class:`Cancelled` if *Cancel job* was pressed since the job started."""
         if self._cancel.is_set():
-            raise Cancelled("cancelled")
+            raise Cancelled(by_user=True)
 
     def wait(self, timeout: float = 60.0) -> bool:
         """Wait for background jobs to end (tests, closing)."""

@@ -47,6 +47,7 @@ EXAMPLES = Path(__file__).resolve().parent.parent / "assets" / "designs"
 #: Seconds between autosave checks (any edit, a drag included, is on disk within 2 s).
 AUTOSAVE_SECONDS = 1.0
 
+
 class Studio:
     """The studio bound to one viser server (several browser tabs share it)."""
 
@@ -264,7 +265,7 @@ class Studio:
         def progress(fraction: float, message: str) -> None:
             self.jobs.check()
             if self.state.version != version:  # a newer edit supersedes this fit
-                raise Cancelled("the design changed")
+                raise Cancelled(by_user=False)
             self.panels.status.content = f"**Status:** fitting: {message} " \
                                          f"({100 * fraction:.0f} %)"
 
@@ -277,7 +278,7 @@ class Studio:
         try:
             sol, note = self._solve(design, full)
         except Cancelled as exc:
-            if str(exc) == "cancelled":  # by the user: keep the last valid solution
+            if exc.by_user:  # keep the last valid solution
                 self._drawn = (version, level)
                 self.panels.status.content = "**Status:** ⚠ fit cancelled (the last valid " \
                                              "design is shown; edit the design to fit again)"

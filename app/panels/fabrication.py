@@ -182,8 +182,7 @@ class FabricationPanel:
             else:
                 self._export(sol, client)
         except Cancelled as exc:
-            why = "stopped as you asked" if str(exc) == "cancelled" else \
-                "the design changed; press the button again"
+            why = str(exc) if exc.by_user else "the design changed; press the button again"
             studio.notify(f"{title} cancelled", why, cause="job")
             self.progress_text.content = f"{title} cancelled ({why})."
         except (FabricationError, ValueError) as exc:
@@ -196,7 +195,7 @@ class FabricationPanel:
         """Show progress; *Cancel job* or a design edit since the task started cancels it."""
         self.studio.jobs.check()
         if self.studio.state.version != self._version:
-            raise Cancelled("the design changed")
+            raise Cancelled(by_user=False)
         self.progress_log.append((message, fraction))
         self.progress.visible = True
         self.progress.value = 100.0 * min(max(fraction, 0.0), 1.0)
