@@ -261,10 +261,10 @@ class SceneView:
                 and np.array_equal(self.spaces_jf, jf))
 
     # --- loop and linkage -------------------------------------------------------------------
-    def set_loop(self, sol: Any, preview: np.ndarray | None = None,
-                 preview_radius: float | None = None) -> None:
+    def set_loop(self, sol: Any, preview: Any = None, preview_radius: float | None = None
+                 ) -> None:
         """Choose the linkage geometry: the realization's points, else a drag ``preview``
-        ``(12, 3)`` (bars of ``preview_radius``), else the bare loop polyline."""
+        (``pipeline.WarmPreview``; bars of ``preview_radius``), else the bare loop polyline."""
         loop = sol.loop
         self.joint_factors = loop.joint_factors
         self.center = sol.design.pose_array[0].mean(0)
@@ -275,7 +275,7 @@ class SceneView:
             self.bar_radius = float(real.radius)
             self.last_real = (loop.joint_factors, self.points_home, self.bar_radius)
         elif preview is not None:
-            self.points_home = np.asarray(preview, float)
+            self.points_home = np.asarray(preview.points, float)
             self.bar_radius = float(preview_radius or 0.01 * self.scale)
         else:  # the shortest closed polyline on the axes (eq. 11): S_i = E_{i-1}
             try:
@@ -287,12 +287,15 @@ class SceneView:
         f, g = loop.factorizations
         colors = np.repeat(FACTOR_COLORS[[f, g]], 3, axis=0)[:, None, :].repeat(2, axis=1)
         self.loop_colors = colors
-        self._set_effector(sol)
-
-    def _set_effector(self, sol: Any) -> None:
-        """The end-effector P (home vertices, world frame) moving with link 3, and the end
-        link's path S_3 L + P + R E_3 replacing the bar S_3 E_3 (Sec. 5.1)."""
         ee = getattr(sol, "end_effector", None)
+        self._set_effector(ee if ee is not None or preview is None or preview.effector is None
+                           else preview)
+
+    def _set_effector(self, ee: Any) -> None:
+        """The end-effector P (home vertices, world frame) moving with link 3, and the end
+        link's path S_3 L + P + R E_3 replacing the bar S_3 E_3 (Sec. 5.1); ``ee`` has the
+        attached ``effector`` and ``end_link()`` (an ``EndEffectorRealization`` or a drag
+        preview), or is None."""
         old = self.handles.pop("effector", None)
         if old is not None:
             old.remove()

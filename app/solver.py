@@ -8,8 +8,6 @@ import json
 from collections import OrderedDict
 from collections.abc import Callable
 
-import numpy as np
-
 from app.state import absolute_mesh
 from paraloop_core import design as design_mod
 from paraloop_core import pipeline
@@ -25,7 +23,7 @@ class Solver:
     def __init__(self) -> None:
         self._cache: OrderedDict[str, tuple[pipeline.Solution, str]] = OrderedDict()
         self.realized: pipeline.Solution | None = None  # warm start of the next realization
-        self.preview_points: np.ndarray | None = None  # the last preview's linkage, if any
+        self.preview: pipeline.WarmPreview | None = None  # the last preview's linkage
 
     def solve(self, design: Design, full: bool, current: pipeline.Solution | None,
               progress: Callable[[float, str], None] | None = None
@@ -34,7 +32,7 @@ class Solver:
 
         A preview (``full`` False) reuses ``current``'s mu instead of re-running a criterion's
         scan, refits a ``fit`` design from the fit on screen (one start), and moves the last
-        realization along when the exact minima clear it (:attr:`preview_points`,
+        realization along when the exact minima clear it (:attr:`preview`,
         :func:`pipeline.warm_preview`; certified only by the full update on release). The
         studio keeps the user's loop: fallbacks only thin the bars."""
         hint = self.realized
@@ -46,7 +44,7 @@ class Solver:
             if m.method == "fit":  # a drag refits one start, from the fit on screen
                 design = dataclasses.replace(design, evolution={**design.evolution, "starts": 1})
             sol = pipeline.solve(design, realize=False, hint=current)
-            self.preview_points = None if hint is None else pipeline.warm_preview(sol, hint)
+            self.preview = None if hint is None else pipeline.warm_preview(sol, hint)
             return sol, ""
         data = design_mod.design_to_dict(absolute_mesh(design))  # a mesh path per file
         del data["name"], data["locked"]  # neither changes the solution

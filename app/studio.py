@@ -301,7 +301,7 @@ class Studio:
         if full and sol.realization is not None:
             self.solver.realized = sol
         hint = self.solver.realized
-        preview = None if full or hint is None else self.solver.preview_points
+        preview = None if full or hint is None else self.solver.preview
         with self.server.atomic():
             self.scene.draw_motion(sol)
             self.scene.draw_factorizations(sol)

@@ -51,7 +51,7 @@ def drag(app: studio_mod.Studio, i: int, path: list[np.ndarray]) -> dict[str, li
     preview, shown = [], []
     for p in path:
         preview.append(_fire(app, i, p, "update"))
-        shown.append(app.solver.preview_points is not None)
+        shown.append(app.solver.preview is not None)
     full = _fire(app, i, path[-1], "end")
     return {"preview": preview, "shown": shown, "full": [full]}
 

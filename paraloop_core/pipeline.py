@@ -161,22 +161,44 @@ def _params(sol: Solution, rho_f: float = 1.0, d_f: float = 1.0) -> dict[str, An
                 rho_fraction=r.rho_fraction * rho_f / d_f, fixed=dict(r.fixed), max_k=r.max_k)
 
 
-def warm_preview(sol: Solution, hint: Solution) -> np.ndarray | None:
-    """Vertices ``(12, 3)`` (design units) of ``sol``'s loop with the shifts and offsets of
-    ``hint``'s realization when the thin check and the exact minima (Sec. 5.1) clear them, else
-    None. Not certified (no sound bounds; a loop with an end-effector is not previewed): a drag
-    shows it, the release certifies (:func:`warm_realization`)."""
+@dataclass(frozen=True)
+class WarmPreview:
+    """A drag preview (:func:`warm_preview`): vertices ``points`` ``(12, 3)`` (design units,
+    home) and, with an end-effector, the attached ``effector``. Never a certificate."""
+
+    points: np.ndarray
+    effector: Any = None
+
+    def end_link(self) -> np.ndarray:
+        """End-link path ``(4, 3)`` at home, ``S_3, L, R, E_3`` (with an end-effector)."""
+        v, e = self.points, self.effector
+        return np.stack([v[6], e.vertices[e.L], e.vertices[e.R], v[7]])
+
+
+def warm_preview(sol: Solution, hint: Solution) -> WarmPreview | None:
+    """``sol``'s loop with the shifts and offsets of ``hint``'s realization when the thin
+    checks (P included) and the exact minima (Sec. 5.1) clear them, else None. Not certified
+    (no sound bounds): a drag shows it, the release certifies (:func:`warm_realization`)."""
     from paraloop_core.realization import realize as realize_mod
 
     real, design = hint.realization, sol.design
-    if (real is None or hint.design.loop != design.loop or design.end_effector is not None
-            or hint.end_effector is not None or not design.realization.enabled):
+    if (real is None or hint.design.loop != design.loop or not design.realization.enabled
+            or (hint.end_effector is None) != (design.end_effector is None)):
         return None
     try:
         params = _params(sol)
-        search = realize_mod.Search(sol.loop.joint_factors, params.pop("fixed"))
-        return search.run_hint(real.shifts, real.offsets, **params, certify=False)
-    except RealizationError:
+        if design.end_effector is None:
+            search = realize_mod.Search(sol.loop.joint_factors, params.pop("fixed"))
+            pts = search.run_hint(real.shifts, real.offsets, **params, certify=False)
+            return None if pts is None else WarmPreview(pts)
+        from paraloop_core.realization import realize_ee
+
+        effector = attach_end_effector(sol)
+        pts = realize_ee.warm_preview_with_effector(
+            sol.loop.joint_factors, effector, real.shifts, real.offsets, **params,
+            ee_clearance=design.end_effector.clearance)
+        return None if pts is None else WarmPreview(pts, effector)
+    except (RealizationError, ValueError):  # e.g. a mesh gone: the full update says why
         return None
 
 

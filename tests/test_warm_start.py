@@ -52,8 +52,9 @@ def test_warm_realization_of_a_drag_step_is_certified(tv8, step):
     rep = check_result(pipeline.result_to_dict(warm))
     assert rep["status"] == "checked" and not rep["disagreements"], rep["disagreements"]
     # the drag preview shows the same vertices
-    pts = pipeline.warm_preview(new, sol)
-    assert pts is not None and np.allclose(pts, warm.realization.points, atol=1e-9)
+    preview = pipeline.warm_preview(new, sol)
+    assert preview is not None and preview.effector is None
+    assert np.allclose(preview.points, warm.realization.points, atol=1e-9)
 
 
 def test_solve_with_hint_is_warm_and_without_is_cold(tv8):
@@ -91,3 +92,21 @@ def test_other_loop_or_no_realization_gives_no_warm_start(tv8):
     assert pipeline.warm_preview(other, sol) is None
     bare = pipeline.solve(design, realize=False)
     assert pipeline.warm_realization(sol, bare) is None
+
+
+def test_end_effector_drag_preview_moves_the_linkage_and_p():
+    shading = TV8.parent / "shading-panel.json"
+    design = design_mod.load_design(shading)
+    sol = pipeline.solve(design, other_loops=False)
+    assert sol.end_effector is not None
+    new = pipeline.solve(moved(design, 3, [0.004, -0.002, 0.001]), realize=False)
+    preview = pipeline.warm_preview(new, sol)
+    assert preview is not None and preview.effector is not None
+    link = preview.end_link()  # S_3, L, R, E_3 with L, R on P
+    assert np.allclose(link[[0, 3]], preview.points[[6, 7]])
+    assert np.allclose(link[1:3], preview.effector.vertices[[preview.effector.L,
+                                                              preview.effector.R]])
+    # the release certifies the same pattern (when it clears) with P's certificate
+    warm = pipeline.warm_realization(new, sol)
+    assert warm is not None and warm.end_effector is not None
+    assert np.allclose(warm.realization.points, preview.points, atol=1e-9)

@@ -145,6 +145,10 @@ class _Step4:
         self.final = np.zeros((n, 729), dtype=bool)
         self.exact = np.ones((n, 729), dtype=bool)
 
+    def points(self, seq: int) -> np.ndarray:
+        """Vertices ``(12, 3)`` of offset sequence ``seq`` (search units)."""
+        return self.search.points(seq)
+
     def codes(self, seqs: np.ndarray) -> np.ndarray:
         """Cache columns ``(S, rows)``: each row's sequence with irrelevant digits zeroed."""
         return (DIGITS[seqs][:, None, :] * _ROW_AXES[None]) @ 3 ** np.arange(5, -1, -1)
@@ -358,3 +362,16 @@ def warm_start_with_effector(joint_factors: np.ndarray, effector: EndEffector,
     search = _EffectorSearch(joint_factors, fixed, effector, ee_clearance)
     return search.run_hint(shifts, offsets, p=p, rho=rho, d=d, d_fraction=d_fraction,
                            rho_fraction=rho_fraction, max_k=max_k)
+
+
+def warm_preview_with_effector(joint_factors: np.ndarray, effector: EndEffector,
+                               shifts: np.ndarray, offsets: np.ndarray, *, p: float = 10.0,
+                               rho: float | None = None, d: float | None = None,
+                               d_fraction: float = 0.01, rho_fraction: float = 0.25,
+                               fixed: dict[int, float] | None = None, max_k: int = 50,
+                               ee_clearance: float | None = None) -> np.ndarray | None:
+    """Vertices ``(12, 3)`` (design units) of :func:`warm_start_with_effector` without its
+    certificate (thin checks with P and step 4's exact minima only): a drag preview."""
+    search = _EffectorSearch(joint_factors, fixed, effector, ee_clearance)
+    return search.run_hint(shifts, offsets, p=p, rho=rho, d=d, d_fraction=d_fraction,
+                           rho_fraction=rho_fraction, max_k=max_k, certify=False)
