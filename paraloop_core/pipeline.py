@@ -175,31 +175,42 @@ class WarmPreview:
         return np.stack([v[6], e.vertices[e.L], e.vertices[e.R], v[7]])
 
 
-def warm_preview(sol: Solution, hint: Solution) -> WarmPreview | None:
-    """``sol``'s loop with the shifts and offsets of ``hint``'s realization when the thin
-    checks (P included) and the exact minima (Sec. 5.1) clear them, else None. Not certified
-    (no sound bounds): a drag shows it, the release certifies (:func:`warm_realization`)."""
+def _hint_search(sol: Solution, hint: Solution) -> tuple[Any, Any, dict[str, Any]] | None:
+    """``(search, effector, run_hint keyword arguments)`` of ``sol``'s loop, trying the shifts
+    and offsets of ``hint``'s realization, when ``hint`` realized the same loop with the same
+    end-effector kind; else None."""
     from paraloop_core.realization import realize as realize_mod
 
     real, design = hint.realization, sol.design
     if (real is None or hint.design.loop != design.loop or not design.realization.enabled
             or (hint.end_effector is None) != (design.end_effector is None)):
         return None
-    try:
-        params = _params(sol)
-        if design.end_effector is None:
-            search = realize_mod.Search(sol.loop.joint_factors, params.pop("fixed"))
-            pts = search.run_hint(real.shifts, real.offsets, **params, certify=False)
-            return None if pts is None else WarmPreview(pts)
-        from paraloop_core.realization import realize_ee
+    params = _params(sol)
+    fixed = params.pop("fixed")
+    params.update(shifts=real.shifts, offsets=real.offsets)
+    if design.end_effector is None:
+        return realize_mod.Search(sol.loop.joint_factors, fixed), None, params
+    from paraloop_core.realization import realize_ee
 
-        effector = attach_end_effector(sol)
-        pts = realize_ee.warm_preview_with_effector(
-            sol.loop.joint_factors, effector, real.shifts, real.offsets, **params,
-            ee_clearance=design.end_effector.clearance)
-        return None if pts is None else WarmPreview(pts, effector)
+    effector = attach_end_effector(sol)
+    search = realize_ee.EffectorSearch(sol.loop.joint_factors, fixed, effector,
+                                       design.end_effector.clearance)
+    return search, effector, params
+
+
+def warm_preview(sol: Solution, hint: Solution) -> WarmPreview | None:
+    """``sol``'s loop with the shifts and offsets of ``hint``'s realization when the thin
+    checks (P included) and the exact minima (Sec. 5.1) clear them, else None. Not certified
+    (no sound bounds): a drag shows it, the release certifies (:func:`warm_realization`)."""
+    try:
+        found = _hint_search(sol, hint)
+        if found is None:
+            return None
+        search, effector, params = found
+        pts = search.run_hint(**params, certify=False)
     except (RealizationError, ValueError):  # e.g. a mesh gone: the full update says why
         return None
+    return None if pts is None else WarmPreview(pts, effector)
 
 
 def warm_realization(sol: Solution, hint: Solution) -> Solution | None:
@@ -208,30 +219,19 @@ def warm_realization(sol: Solution, hint: Solution) -> Solution | None:
     None. Cheap (one candidate), so a drag can show the realized loop at every step."""
     from dataclasses import replace
 
-    from paraloop_core.realization import realize as realize_mod
-
-    real, design = hint.realization, sol.design
-    if (real is None or hint.design.loop != design.loop
-            or (hint.end_effector is None) != (design.end_effector is None)):
-        return None
     try:
-        if design.end_effector is None:
-            ee = None
-            found = realize_mod.warm_start(sol.loop.joint_factors, real.shifts, real.offsets,
-                                           **_params(sol))
-        else:
-            from paraloop_core.realization import realize_ee
-
-            ee = realize_ee.warm_start_with_effector(
-                sol.loop.joint_factors, attach_end_effector(sol), real.shifts, real.offsets,
-                **_params(sol), ee_clearance=design.end_effector.clearance)
-            found = None if ee is None else ee.realization
-    except RealizationError:
-        return None  # e.g. the loop became spherical: the full search says why
-    if found is None:
+        found = _hint_search(sol, hint)
+        if found is None:
+            return None
+        search, effector, params = found
+        out = search.run_hint(**params)
+    except (RealizationError, ValueError):  # a spherical loop, a mesh gone: the search says why
         return None
+    if out is None:
+        return None
+    real, ee = (out, None) if effector is None else (out.realization, out)
     report = {"status": "found", "attempts": [], "fallback": None, "warm_start": True}
-    return replace(sol, realization=found, end_effector=ee, realization_report=report)
+    return replace(sol, realization=real, end_effector=ee, realization_report=report)
 
 
 #: Largest singularity measure (unit-free, the best of the nine loops) below which a design

@@ -8,7 +8,7 @@ and two bars from ``S_3`` (on ``A_2``) to the vertex L of P and from the vertex 
 other vertices unless fixed (Fig. 9 fixes them too). The search of :func:`realize.realize`
 (:class:`realize.Search`) runs unchanged (same candidates, order and offset sequences) with
 the extra exact checks of :mod:`ee_certificate` (the pair rows and the result), as the hooks
-of :class:`_EffectorSearch`.
+of :class:`EffectorSearch`.
 """
 
 from __future__ import annotations
@@ -244,8 +244,9 @@ def _unique_items(rows: np.ndarray, cols: np.ndarray, keep: np.ndarray
     return items[:, 0], items[:, 1]
 
 
-class _EffectorSearch(Search):
-    """:class:`realize.Search` with the end-effector: the initial polyline routed through L
+class EffectorSearch(Search):
+    """:class:`realize.Search` with the end-effector (its :meth:`run_hint` warm-starts, as
+    the base class's): the initial polyline routed through L
     and R, thin checks of the segment pairs then of P, step 4 by :class:`_Step4`."""
 
     cap_message = ("no collision-free realization with the end-effector for k <= {max_k} "
@@ -345,33 +346,7 @@ def realize_with_effector(
     (``fixed`` may hold ``V_2``/``V_3`` as well); ``ee_clearance`` (default rho) is the least
     distance between P and any bar or pin centre line. ``l`` is the initial polyline's length
     with the end link routed ``V_2 L R V_3``. Raises :class:`RealizationError`."""
-    search = _EffectorSearch(joint_factors, fixed, effector, ee_clearance)
+    search = EffectorSearch(joint_factors, fixed, effector, ee_clearance)
     return search.run(p=p, rho=rho, d=d, d_fraction=d_fraction, rho_fraction=rho_fraction,
                       max_k=max_k, budget=budget)
 
-
-def warm_start_with_effector(joint_factors: np.ndarray, effector: EndEffector,
-                             shifts: np.ndarray, offsets: np.ndarray, *, p: float = 10.0,
-                             rho: float | None = None, d: float | None = None,
-                             d_fraction: float = 0.01, rho_fraction: float = 0.25,
-                             fixed: dict[int, float] | None = None, max_k: int = 50,
-                             ee_clearance: float | None = None
-                             ) -> EndEffectorRealization | None:
-    """:func:`realize.warm_start` for a loop carrying ``effector`` (as
-    :func:`realize_with_effector`); None when the hint does not realize it."""
-    search = _EffectorSearch(joint_factors, fixed, effector, ee_clearance)
-    return search.run_hint(shifts, offsets, p=p, rho=rho, d=d, d_fraction=d_fraction,
-                           rho_fraction=rho_fraction, max_k=max_k)
-
-
-def warm_preview_with_effector(joint_factors: np.ndarray, effector: EndEffector,
-                               shifts: np.ndarray, offsets: np.ndarray, *, p: float = 10.0,
-                               rho: float | None = None, d: float | None = None,
-                               d_fraction: float = 0.01, rho_fraction: float = 0.25,
-                               fixed: dict[int, float] | None = None, max_k: int = 50,
-                               ee_clearance: float | None = None) -> np.ndarray | None:
-    """Vertices ``(12, 3)`` (design units) of :func:`warm_start_with_effector` without its
-    certificate (thin checks with P and step 4's exact minima only): a drag preview."""
-    search = _EffectorSearch(joint_factors, fixed, effector, ee_clearance)
-    return search.run_hint(shifts, offsets, p=p, rho=rho, d=d, d_fraction=d_fraction,
-                           rho_fraction=rho_fraction, max_k=max_k, certify=False)
