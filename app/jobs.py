@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import contextlib
 import threading
-import traceback
 from collections.abc import Callable, Iterator
 
 
@@ -23,10 +22,13 @@ class Cancelled(Exception):
 
 
 class Jobs:
-    """At most one long job at a time; ``on_busy(name or None)`` shows or hides the button."""
+    """At most one long job at a time; ``on_busy(name or None)`` shows or hides the button,
+    ``on_error(exception)`` reports a bug in a background job (called in its ``except``)."""
 
-    def __init__(self, on_busy: Callable[[str | None], None]) -> None:
+    def __init__(self, on_busy: Callable[[str | None], None],
+                 on_error: Callable[[Exception], None]) -> None:
         self._on_busy = on_busy
+        self._on_error = on_error
         self._cancel = threading.Event()
         self._lock = threading.Lock()
         self._names: list[str] = []
@@ -55,8 +57,8 @@ class Jobs:
     def _run(self, fn: Callable[[], None]) -> None:
         try:
             fn()
-        except Exception:  # the job reports its own errors; a bug must not kill the studio
-            traceback.print_exc()
+        except Exception as exc:  # the job reports its own errors; a bug must not stop us
+            self._on_error(exc)
         finally:
             self._done()
 

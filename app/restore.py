@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import viser
 
@@ -37,11 +37,9 @@ class RestoreOffer:
     """Buttons under the status line; *Restore* commits the autosaved design (the opened
     file's version stays one Undo away), *Discard* deletes the autosave."""
 
-    def __init__(self, studio: StudioHost, design: Design, mtime: float,
-                 on_restore: Any) -> None:
+    def __init__(self, studio: StudioHost, design: Design, mtime: float) -> None:
         self.studio = studio
         self.design = design  # kept in memory: later autosaves cannot lose it
-        self._on_restore = on_restore
         gui, order = studio.server.gui, studio.panels_order() + 0.01
         when = time.strftime("%H:%M", time.localtime(mtime))
         day = time.strftime("%Y-%m-%d", time.localtime(mtime))
@@ -61,7 +59,7 @@ class RestoreOffer:
         if not self._close():
             return
         self.studio.state.commit(self.design)
-        self._on_restore()
+        self.studio.reframe()
         self.studio.request(FULL, sync=True)
         self.studio.notify("Changes restored", "Undo returns to the opened file", cause="load")
 

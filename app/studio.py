@@ -60,7 +60,7 @@ class Studio:
         self.downloads: list[tuple[str, bytes]] = []
         self.notices = Notices(server)
         self.notifications = self.notices.log  # (title, body, error), newest last
-        self.jobs = Jobs(self._busy)
+        self.jobs = Jobs(self._busy, self._bug)
         self.restore_offer: RestoreOffer | None = None
         self._frame_pending = True  # frame the camera after the next full update
         self.solver = Solver()  # cached, warm-started solves
@@ -210,21 +210,17 @@ class Studio:
                 if task == "mesh":
                     self.panels.effector.check_mesh(arg)
                 elif not self.jobs.start(task, lambda task=task, arg=arg:
-                                         self._guarded(self.fabrication.run, task, arg)):
+                                         self.fabrication.run(task, arg)):
                     self.notify(f"Cannot start the {task}", f"the {self.jobs.busy} is still "
                                 "running: wait for it or press Cancel job", error=True,
                                 cause="job")
         except Exception as exc:  # a bug, not bad input: keep serving and say so
-            traceback.print_exc()
-            self.notify("Internal error", f"{exc!r} (see the server log)", error=True)
+            self._bug(exc)
 
-    def _guarded(self, fn: Any, *args: Any) -> None:
-        """Run a background job; a bug in it is reported in the page, not only in the log."""
-        try:
-            fn(*args)
-        except Exception as exc:
-            traceback.print_exc()
-            self.notify("Internal error", f"{exc!r} (see the server log)", error=True)
+    def _bug(self, exc: Exception) -> None:
+        """A bug in the worker's job or a background job: logged and shown in the page."""
+        traceback.print_exc()
+        self.notify("Internal error", f"{exc!r} (see the server log)", error=True)
 
     def _update(self, level: int) -> None:
         start = time.perf_counter()
@@ -362,7 +358,7 @@ def offer_restore(studio: Studio, design_path: Path | None) -> str | None:
     same = design_mod.design_to_dict(absolute_mesh(design))
     if same == design_mod.design_to_dict(absolute_mesh(studio.state.design)):
         return None  # nothing unsaved: the edits were undone before the autosave
-    studio.restore_offer = RestoreOffer(studio, design, mtime, studio.reframe)
+    studio.restore_offer = RestoreOffer(studio, design, mtime)
     return (f"unsaved changes from {time.strftime('%H:%M', time.localtime(mtime))} found in "
             f"{studio.state.autosave_path}: the page offers to restore them")
 
