@@ -126,10 +126,10 @@ def export_zip(solution: pipeline.Solution, fab: FabSettings,
     real = solution.realization
     if real is not None:
         opts = fabrication_options(real, fab, fab.carved_parts)
-        opts.pop("spec")  # export_printable sizes the parts for the printer
+        spec = opts.pop("spec")  # export_printable sizes the parts for the printer
         result = printable.export_printable(
             real, printer=printer_of(fab),
-            size_mm=size_of(real, fab) if fab.carved_parts else (fab.size_mm or None),
+            size_mm=spec.size_mm if fab.carved_parts else (fab.size_mm or None),
             print_in_place=fab.print_in_place, ground=fab.ground,
             effector=solution.end_effector, fixed=dict(solution.design.realization.fixed),
             alternatives=solution.other_loops(), progress=progress, **opts)

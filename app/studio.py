@@ -155,7 +155,7 @@ class Studio:
         # its own autosave: the opened file's one keeps that file's unsaved work
         self.state.autosave_path = autosave_path_for(None, f"upload-{Path(upload.name).stem}")
         self.state.commit(design)
-        self._frame_pending = True
+        self.reframe()
         self.request(FULL, sync=True)
         self.notify("Design loaded", upload.name, cause="load")
 
@@ -188,7 +188,7 @@ class Studio:
         """*Rescale*: the design in a unit that brings its size near 1 (one undo step)."""
         factor = unit_factor(design_scale(self.state.design))
         self.state.edit(lambda d: rescaled(d, factor))
-        self._frame_pending = True
+        self.reframe()
         self.request(FULL, sync=True)
         self.notify("Design rescaled", f"every length x {factor:g}", cause="scale")
 
@@ -321,9 +321,9 @@ class Studio:
         # "ok" only when there is a loop to show (or none was asked for)
         word = "⚠ no collision-free realization" if full and sol.realization is None and \
             sol.design.realization.enabled else "ok"
-        self.panels.status.content = f"**Status:** {word} ({kind} {ms:.0f} ms). {note}" \
-            + scale_warning(design)
-        self.panels.rescale.visible = bool(scale_warning(design))
+        unusual = scale_warning(design)
+        self.panels.status.content = f"**Status:** {word} ({kind} {ms:.0f} ms). {note}{unusual}"
+        self.panels.rescale.visible = bool(unusual)
 
     def _play(self) -> None:
         """Animation frames at 30 Hz and the autosave every :data:`AUTOSAVE_SECONDS`."""

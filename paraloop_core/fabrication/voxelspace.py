@@ -112,13 +112,21 @@ def default_spaces(points: np.ndarray, radius: float | Sequence[float],
     value, or six, e.g. a realization's design-space radii); with one value the base link's
     gets ``base_radius`` (default ``2 radius``: large, for grounding)."""
     pts = check_points(points)
-    if np.ndim(radius) == 0:
-        radii = [base_radius if base_radius is not None else 2.0 * radius] + [radius] * 5
-    else:
-        radii = [float(r) for r in radius]
-        if len(radii) != 6:
-            raise FabricationError("give one design-space radius or six", "bad-parameters")
+    radii = space_radii(radius, base_radius)
     return [capsule_space(pts[2 * i], pts[2 * i + 1], radii[i], resolution) for i in range(6)]
+
+
+def space_radii(radius: float | Sequence[float], base_radius: float | None = None
+                ) -> list[float]:
+    """The six capsule radii of :func:`default_spaces`: ``radius`` given six times, or one
+    value for links 1-5 and ``base_radius`` (default ``2 radius``) for the base link."""
+    if np.ndim(radius) == 0:
+        return [float(base_radius if base_radius is not None else 2.0 * radius)] + \
+            [float(radius)] * 5
+    radii = [float(r) for r in radius]
+    if len(radii) != 6:
+        raise FabricationError("give one design-space radius or six", "bad-parameters")
+    return radii
 
 
 #: Voxels per capsule radius that the automatic resolution aims for, over the thinnest
@@ -136,12 +144,8 @@ def auto_resolution(points: np.ndarray, radius: float | Sequence[float],
     of :data:`AUTO_RESOLUTIONS` that puts :data:`AUTO_VOXELS_PER_RADIUS` voxels across every
     capsule's radius (the largest when none does)."""
     pts = check_points(points).reshape(6, 2, 3)
-    if np.ndim(radius) == 0:
-        radii = np.array([base_radius if base_radius is not None else 2.0 * radius]
-                         + [radius] * 5, float)
-    else:
-        radii = np.asarray(radius, float)
-    if radii.shape != (6,) or not np.all(np.isfinite(radii) & (radii > 0)):
+    radii = np.array(space_radii(radius, base_radius))
+    if not np.all(np.isfinite(radii) & (radii > 0)):
         raise FabricationError("design-space radii must be positive and finite",
                                "bad-parameters")
     extent = np.linalg.norm(pts[:, 1] - pts[:, 0], axis=1) + 2.0 * radii
