@@ -18,7 +18,7 @@ import numpy as np
 
 from paraloop_core.algebra import dq
 from paraloop_core.errors import RealizationError
-from paraloop_core.realization import verify
+from paraloop_core.realization import closure, verify
 from paraloop_core.realization.collision import colliding_polylines
 from paraloop_core.realization.offsetting import (
     DIGITS,
@@ -82,6 +82,9 @@ class Realization:
     joint_pairs: np.ndarray
     joint_lower: np.ndarray
     tolerance: float
+    #: proven bound of how far the loop's two float64 readings place a point (:mod:`closure`),
+    #: already taken off ``pair_lower`` and ``joint_lower``
+    reading_gap: float = 0.0
 
     def scaled(self, factor: float, joint_factors: np.ndarray) -> Realization:
         """The same realization in a length unit ``1 / factor`` times this one's, on
@@ -93,7 +96,7 @@ class Realization:
                        thin=self.thin * f, pair_distance=self.pair_distance * f,
                        design_space_radii=self.design_space_radii * f,
                        pair_lower=self.pair_lower * f, joint_lower=self.joint_lower * f,
-                       tolerance=self.tolerance * f)
+                       tolerance=self.tolerance * f, reading_gap=self.reading_gap * f)
 
     @property
     def min_clearance(self) -> float:
@@ -177,15 +180,21 @@ class Search:
                    "collision-free ones failed the 2 rho clearance; raise max_k, lower rho/d "
                    "or fix fewer vertices")
 
-    def __init__(self, joint_factors: np.ndarray, fixed: dict[int, float] | None):
+    def __init__(self, joint_factors: np.ndarray, fixed: dict[int, float] | None,
+                 in_unit: float = 1.0):
         if fixed is not None and len(fixed) >= 6:
             raise RealizationError("at most five vertices can be fixed (the search shifts the "
                                    f"free ones), got {len(fixed)}", "bad-parameters")
-        self.jf_design = np.asarray(joint_factors, dtype=np.float64)
-        self.unit = unit_length(self.jf_design)
-        self.jf = dq.scale_lengths(self.jf_design, 1.0 / self.unit)
+        jf = np.asarray(joint_factors, dtype=np.float64)
+        own = unit_length(jf)
+        # the search unit from the given numbers alone: factors with the same bits in any
+        # ``in_unit`` (the pipeline's) give the same search, only its answer scales
+        self.unit = own * in_unit
+        self.jf = dq.scale_lengths(jf, 1.0 / own)
+        self.jf_design = jf if in_unit == 1.0 else dq.scale_lengths(jf, in_unit)
         self.fixed = None if fixed is None else {i: v / self.unit for i, v in fixed.items()}
         self.cells = 0
+        self._gap: tuple[float, float] | None = None  # closure.reading_gap, once needed
 
     def initial(self) -> tuple[np.ndarray, float]:
         """Step 1: the initial polyline ``(6, 3)`` and its length l."""
@@ -223,24 +232,47 @@ class Search:
         _, t = step.certificate(seq)
         return self.bounds(points, OFFSET_PAIRS, verify.JOINT_PAIRS, t)
 
+    def reading_gap(self, points: np.ndarray) -> float:
+        """Proven bound (search units) of how far any two float64 readings of the loop (one
+        way round or the other; this loop or the reported one in design units) place a point
+        of a link carrying ``points`` ``(N, 3)`` over the cycle (:mod:`closure`)."""
+        if self._gap is None:
+            self._gap = closure.reading_gap(self.jf)
+        rot, shift = self._gap
+        direction = np.linalg.norm(self.jf[:, 1:4], axis=1)
+        # the readings differ by a conjugate of the loop product: the point is carried by at
+        # most six rotations, each about an axis within ``axes`` of the origin, first
+        axes = np.linalg.norm(self.jf[:, 5:8], axis=1) / direction
+        radius = float(np.linalg.norm(points, axis=-1).max()) + 4.0 * float(axes.sum())
+        # the reported loop is this one rescaled: each factor's dual part rounded (<= 2^-51 of
+        # it, primal parts untouched), which moves a chain's translation by at most
+        # 2 |delta d_m| / |primal of t - h_m| <= 2 |delta d_m| / |vec h_m|, twice (both loops)
+        dual = np.linalg.norm(self.jf[:, 4:], axis=1)
+        rescaled = 4.0 * 2.0**-51 * float((dual / direction).sum())
+        return rot * radius + shift + rescaled
+
     def bounds(self, points: np.ndarray, pairs: np.ndarray, joint_pairs: np.ndarray,
-               t: np.ndarray) -> object | None:
+               t: np.ndarray) -> tuple | None:
         """:meth:`verify` of the 12-vertex polyline ``points`` with its certified ``pairs``,
-        consecutive bars ``joint_pairs`` and exact minima ``t``; counts the cells."""
+        consecutive bars ``joint_pairs`` and exact minima ``t``; counts the cells. The lower
+        bounds returned hold for either reading of the loop (:meth:`reading_gap` off)."""
+        gap = self.reading_gap(points)
+        need = 2.0 * self.rho + gap
         bounds = verify.polyline_bounds(self.jf, points, pairs, VERIFY_TOL * self.length, t,
-                                        need=2.0 * self.rho)
+                                        need=need)
         self.cells += int(bounds.cells.sum())
-        if bounds.lower.min() < 2.0 * self.rho:
+        if bounds.lower.min() < need:
             return None
         joints = joint_bounds(self.jf, points, joint_pairs, self.length)
         self.cells += int(joints.cells.sum())
-        return bounds, joints
+        return (replace(bounds, lower=bounds.lower - gap),
+                replace(joints, lower=joints.lower - gap), gap)
 
     def result(self, step: OffsetSearch, seq: int, tau: np.ndarray, v: np.ndarray,
                stats: dict, proof: object) -> Realization:
         """The realization by offset sequence ``seq`` of ``step`` with the bounds ``proof`` of
         :meth:`verify`; ``stats`` lacks the ``length_ratio``."""
-        pairs, joints = proof
+        pairs, joints, gap = proof
         points = step.points(seq)
         stats["length_ratio"] = float(polyline_length(points)) / self.length
         dist = pairs.upper
@@ -248,7 +280,7 @@ class Search:
                            float(self.p), tau, OFFSET_WAYS[DIGITS[seq]], self.v0, v,
                            OFFSET_PAIRS, dist, pairs.t, design_space_radii(pairs.lower, self.rho),
                            stats, pairs.lower, verify.JOINT_PAIRS, joints.lower,
-                           VERIFY_TOL * self.length).scaled(self.unit, self.jf_design)
+                           VERIFY_TOL * self.length, gap).scaled(self.unit, self.jf_design)
 
     def run(self, *, p: float, rho: float | None, d: float | None, d_fraction: float,
             rho_fraction: float, max_k: int, budget: int | None = None):
@@ -373,6 +405,7 @@ def realize(
     fixed: dict[int, float] | None = None,
     max_k: int = 50,
     budget: int | None = None,
+    in_unit: float = 1.0,
 ) -> Realization:
     """Collision-free realization of the loop ``joint_factors`` ``(6, 8)`` (Sec. 5.1).
 
@@ -381,9 +414,10 @@ def realize(
     ``tau l / p``; ``fixed`` maps a vertex index to its held position along its axis (design
     units from the axis foot point). Raises :class:`RealizationError` (``bad-parameters``,
     ``singular-loop``, ``cap-reached`` when ``k`` would exceed ``max_k``, ``budget`` past
-    ``budget`` work units, see :meth:`Search.work`).
+    ``budget`` work units, see :meth:`Search.work`). ``joint_factors`` may be given in a unit
+    of ``in_unit`` design units (the answer is in design units).
     """
-    return Search(joint_factors, fixed).run(p=p, rho=rho, d=d, d_fraction=d_fraction,
+    return Search(joint_factors, fixed, in_unit).run(p=p, rho=rho, d=d, d_fraction=d_fraction,
                                             rho_fraction=rho_fraction, max_k=max_k,
                                             budget=budget)
 

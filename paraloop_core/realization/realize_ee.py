@@ -255,8 +255,8 @@ class EffectorSearch(Search):
                    "shrink or move P, or choose other L and R")
 
     def __init__(self, joint_factors: np.ndarray, fixed: dict[int, float] | None,
-                 effector: EndEffector, ee_clearance: float | None):
-        super().__init__(joint_factors, fixed)
+                 effector: EndEffector, ee_clearance: float | None, in_unit: float = 1.0):
+        super().__init__(joint_factors, fixed, in_unit)
         self.ee_design = effector
         self.ee = replace(effector, vertices=effector.vertices / self.unit)
         self.ee_clearance = None if ee_clearance is None else ee_clearance / self.unit
@@ -298,13 +298,22 @@ class EffectorSearch(Search):
         """Sound bounds of the bar and pin pairs (:mod:`verify`); the pairs with P keep the
         exact edge-face certificate (:mod:`facecollide`)."""
         codes = step.codes(np.array([seq]))[0]
-        t = step.t[np.arange(len(STEP4_ROWS)), codes][:len(BASE_PAIRS)]  # base rows first
+        rows = np.arange(len(STEP4_ROWS))
+        t = step.t[rows, codes][:len(BASE_PAIRS)]  # base rows first
         points = step.search.points(seq)
-        return self.bounds(points, BASE_PAIRS, _EE_JOINT_PAIRS, t)
+        proof = self.bounds(points, BASE_PAIRS, _EE_JOINT_PAIRS, t)
+        if proof is None:
+            return None
+        # P's rows hold for either reading of the loop too (:meth:`reading_gap`)
+        ee = rows >= len(BASE_PAIRS)
+        gap = self.reading_gap(np.concatenate([points, self.ee.vertices]))
+        if (step.value[rows, codes][ee] - gap < step.need[ee]).any():
+            return None
+        return proof
 
     def result(self, step: _Step4, seq: int, tau: np.ndarray, v: np.ndarray, stats: dict,
                proof: object) -> EndEffectorRealization:
-        pairs, joints = proof
+        pairs, joints, gap = proof
         codes = step.codes(np.array([seq]))[0]
         rows = np.arange(len(STEP4_ROWS))
         dist, t = step.value[rows, codes], step.t[rows, codes]
@@ -317,7 +326,8 @@ class EffectorSearch(Search):
         real = Realization(self.jf, points, float(self.rho), float(self.d), self.length,
                            float(self.p), tau, OFFSET_WAYS[DIGITS[seq]], self.v0, v, BASE_PAIRS,
                            dist[base], t[base], design_space_radii(lower, self.rho), stats,
-                           pairs.lower, _EE_JOINT_PAIRS, joints.lower, VERIFY_TOL * self.length)
+                           pairs.lower, _EE_JOINT_PAIRS, joints.lower, VERIFY_TOL * self.length,
+                           gap)
         ee = ~base
         u = self.unit
         return EndEffectorRealization(
@@ -340,13 +350,15 @@ def realize_with_effector(
     max_k: int = 50,
     ee_clearance: float | None = None,
     budget: int | None = None,
+    in_unit: float = 1.0,
 ) -> EndEffectorRealization:
     """Collision-free realization of ``joint_factors`` ``(6, 8)`` whose end link carries
     ``effector`` (from :func:`endeffector.attach`). Parameters as :func:`realize.realize`
     (``fixed`` may hold ``V_2``/``V_3`` as well); ``ee_clearance`` (default rho) is the least
     distance between P and any bar or pin centre line. ``l`` is the initial polyline's length
-    with the end link routed ``V_2 L R V_3``. Raises :class:`RealizationError`."""
-    search = EffectorSearch(joint_factors, fixed, effector, ee_clearance)
+    with the end link routed ``V_2 L R V_3``; ``in_unit`` as there. Raises
+    :class:`RealizationError`."""
+    search = EffectorSearch(joint_factors, fixed, effector, ee_clearance, in_unit)
     return search.run(p=p, rho=rho, d=d, d_fraction=d_fraction, rho_fraction=rho_fraction,
                       max_k=max_k, budget=budget)
 

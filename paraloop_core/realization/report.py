@@ -36,6 +36,7 @@ def realization_to_dict(r: Realization) -> dict:
         "certified_clearance": r.certified_clearance,
         "tolerance": r.tolerance,
         "relative_tolerance": verify.RELATIVE,
+        "reading_gap": r.reading_gap,
         "joint_pairs": [{"edges": [int(e1), int(e2)], "labels": [_edge_label(int(e1)),
                                                                    _edge_label(int(e2))],
                          "lower_bound": float(lo)}
