@@ -24,6 +24,32 @@ class Solver:
         self._cache: OrderedDict[str, tuple[pipeline.Solution, str]] = OrderedDict()
         self.realized: pipeline.Solution | None = None  # warm start of the next realization
         self.preview: pipeline.WarmPreview | None = None  # the last preview's linkage
+        self._preview_fit: tuple[str, object] | None = None  # (design key, its 1-start fit)
+
+    @staticmethod
+    def _key(design: Design) -> str:
+        data = design_mod.design_to_dict(absolute_mesh(design))  # a mesh path per file
+        del data["name"], data["locked"]  # neither changes the solution
+        return json.dumps(data, sort_keys=True)
+
+    def quick_fit(self, design: Design) -> tuple[pipeline.Solution, str] | None:
+        """A ``fit`` design's full update from the one-start fit its last drag preview made
+        (no evolution: the realization, warm-started, is certified as always), or None when
+        no preview was made for exactly this design. The multi-start fit follows
+        (:meth:`solve` with ``full``) and replaces it only if it fits better."""
+        if self._preview_fit is None or self._preview_fit[0] != self._key(design):
+            return None
+        return self._full(design, dict(fit=self._preview_fit[1]))
+
+    def _full(self, design: Design, extra: dict) -> tuple[pipeline.Solution, str]:
+        try:
+            sol = pipeline.solve(design, other_loops=False, hint=self.realized, **extra)
+            report = sol.realization_report or {}
+            note = (f"No realization: {report.get('reason')}"
+                    if report.get("status") == "not_found" else "")
+            return sol, note
+        except RealizationError as exc:
+            return pipeline.solve(design, realize=False, **extra), f"No realization: {exc}"
 
     def solve(self, design: Design, full: bool, current: pipeline.Solution | None,
               progress: Callable[[float, str], None] | None = None
@@ -36,6 +62,7 @@ class Solver:
         :func:`pipeline.warm_preview`; certified only by the full update on release). The
         studio keeps the user's loop: fallbacks only thin the bars."""
         hint = self.realized
+        key = self._key(design)
         if not full:
             m = design.motion
             if m.criterion is not None and current is not None:
@@ -45,22 +72,16 @@ class Solver:
                 design = dataclasses.replace(design, evolution={**design.evolution, "starts": 1})
             sol = pipeline.solve(design, realize=False, hint=current)
             self.preview = None if hint is None else pipeline.warm_preview(sol, hint)
+            self._preview_fit = None if sol.fit is None else (key, sol.fit)
             return sol, ""
-        data = design_mod.design_to_dict(absolute_mesh(design))  # a mesh path per file
-        del data["name"], data["locked"]  # neither changes the solution
-        key = json.dumps(data, sort_keys=True)
         if key not in self._cache:
-            try:
-                sol = pipeline.solve(design, other_loops=False, progress=progress, hint=hint)
-                report = sol.realization_report or {}
-                note = (f"No realization: {report.get('reason')}"
-                        if report.get("status") == "not_found" else "")
-                self._cache[key] = (sol, note)
-            except RealizationError as exc:
-                self._cache[key] = (pipeline.solve(design, realize=False),
-                                    f"No realization: {exc}")
-            while len(self._cache) > CACHE_SIZE:
-                self._cache.popitem(last=False)
+            self.remember(design, *self._full(design, dict(progress=progress)))
         self._cache.move_to_end(key)
         sol, note = self._cache[key]
         return dataclasses.replace(sol, design=design), note
+
+    def remember(self, design: Design, sol: pipeline.Solution, note: str) -> None:
+        """Make ``(sol, note)`` the full update of ``design`` (undo/redo return it)."""
+        self._cache[self._key(design)] = (sol, note)
+        while len(self._cache) > CACHE_SIZE:
+            self._cache.popitem(last=False)

@@ -12,6 +12,7 @@ camera frames everything (``app.camera``), afterwards the user's camera is kept.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import signal
 import sys
@@ -36,12 +37,13 @@ from app.scene import SceneView, design_scale
 from app.solver import Solver
 from app.state import StudioState, absolute_mesh, autosave_path_for, find_mesh, rescaled
 from app.status import realization_note, scale_warning, unit_factor
-from app.worker import FRAME, FULL, PREVIEW, NewestWorker
+from app.worker import FRAME, FULL, PREVIEW, REFINE, NewestWorker
 from paraloop_core import design as design_mod
 from paraloop_core import pipeline
 from paraloop_core.algebra import dq, poly
 from paraloop_core.design import Design, Pose
 from paraloop_core.errors import DesignFileError, ParaloopError
+from paraloop_core.motion.evolution import evolution_settings
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "assets" / "designs"
 #: Seconds between autosave checks (any edit, a drag included, is on disk within 2 s).
@@ -64,9 +66,10 @@ class Studio:
         self.restore_offer: RestoreOffer | None = None
         self._frame_pending = True  # frame the camera after the next full update
         self.solver = Solver()  # cached, warm-started solves
-        self.timings: dict[int, list[float]] = {PREVIEW: [], FULL: [], FRAME: []}
+        self.timings: dict[int, list[float]] = {PREVIEW: [], FULL: [], REFINE: [], FRAME: []}
         self._need_sync = True
         self._drawn = (-1, -1)  # (version, level) of the design on screen
+        self._refine_for = -1  # the version whose quick fit awaits the multi-start REFINE
         self._progress: list[Any] = []
         self.scene = SceneView(server, self._on_gizmo)
         self.panels = Panels(server, self)
@@ -231,6 +234,8 @@ class Studio:
                 self.scene.set_targets(design)
                 self.panels.sync(design)
                 self.fabrication.sync(self.state.fab)
+        if level == REFINE and version != self._refine_for:  # edited since: a plain update
+            level = FULL
         stale = version != self._drawn[0] or level > self._drawn[1]
         if level >= PREVIEW and stale:
             self._solve_and_draw(design, version, level)
@@ -252,11 +257,20 @@ class Studio:
             self.notify("Autosave failed", f"{exc}; use Save design", error=True,
                         cause="autosave")
 
-    def _solve(self, design: Design, full: bool) -> tuple[pipeline.Solution, str]:
-        """:meth:`Solver.solve`; a full fit runs as a long job (progress, *Cancel job*)."""
+    def _solve(self, design: Design, level: int) -> tuple[pipeline.Solution, str]:
+        """:meth:`Solver.solve`. A fit design's full update takes the fit of its last drag
+        preview (:meth:`Solver.quick_fit`) and asks for ``REFINE``: the multi-start fit, run
+        as a long job (progress, *Cancel job*), shown only if it fits better."""
+        full = level >= FULL
         if not (full and design.motion.method == "fit"):
             return self.solver.solve(design, full, self.solution)
         version = self.state.version
+        if level == FULL:
+            quick = self.solver.quick_fit(design)
+            if quick is not None:
+                self._refine_for = version
+                return quick
+        shown = self.solution
 
         def progress(fraction: float, message: str) -> None:
             self.jobs.check()
@@ -266,13 +280,19 @@ class Studio:
                                          f"({100 * fraction:.0f} %)"
 
         with self.jobs.running("fit"):
-            return self.solver.solve(design, full, self.solution, progress)
+            sol, note = self.solver.solve(design, full, self.solution, progress)
+        if level == REFINE and shown is not None and shown.fit is not None \
+                and shown.fit.cost <= sol.fit.cost:  # the drag's fit stays: it fits better
+            sol, note = dataclasses.replace(shown, design=design), ""
+            self.solver.remember(design, sol, note)
+        return sol, note
 
     def _solve_and_draw(self, design: Design, version: int, level: int) -> None:
-        full = level == FULL
+        full = level >= FULL
         t0 = time.perf_counter()
+        self._refine_for = -1
         try:
-            sol, note = self._solve(design, full)
+            sol, note = self._solve(design, level)
         except Cancelled as exc:
             if exc.by_user:  # keep the last valid solution
                 self._drawn = (version, level)
@@ -321,6 +341,11 @@ class Studio:
         # "ok" only when there is a loop to show (or none was asked for)
         word = "⚠ no collision-free realization" if full and sol.realization is None and \
             sol.design.realization.enabled else "ok"
+        if self._refine_for == version:
+            starts = evolution_settings(design.evolution).starts
+            note += (f" Motion: the drag's one-start fit; refining it with {starts} starts in "
+                     "the background.")
+            self.worker.request(REFINE)
         unusual = scale_warning(design)
         self.panels.status.content = f"**Status:** {word} ({kind} {ms:.0f} ms). {note}{unusual}"
         self.panels.rescale.visible = bool(unusual)

@@ -1,6 +1,7 @@
 """One background thread that always computes the newest request.
 
-Requests carry a level (``FRAME`` < ``PREVIEW`` < ``FULL``); requests made while the worker is
+Requests carry a level (``FRAME`` < ``PREVIEW`` < ``FULL`` < ``REFINE``, the multi-start fit
+that follows a fit design's quick full update); requests made while the worker is
 busy merge into one pending job at the highest level asked for, so rapid gizmo events collapse
 and never queue up. A watchdog calls ``on_slow`` when a job runs longer than ``slow_after``
 seconds and the worker calls ``on_slow_done`` when that job ends (the progress indicator).
@@ -13,7 +14,7 @@ import time
 import traceback
 from collections.abc import Callable
 
-FRAME, PREVIEW, FULL = 0, 1, 2
+FRAME, PREVIEW, FULL, REFINE = 0, 1, 2, 3
 
 
 class NewestWorker:

@@ -131,7 +131,7 @@ def _criterion_params(design: Design, unit: float) -> dict[str, Any]:
 
 def solve(design: Design, *, realize: bool = True, other_loops: bool = True,
           progress: Callable[[float, str], None] | None = None,
-          hint: Solution | None = None) -> Solution:
+          hint: Solution | None = None, fit: Any = None) -> Solution:
     """Compute the solution of a design; raises ParaloopError subclasses (ValueError) with a
     clear message for degenerate poses, non-generic motions or impossible realization
     parameters. A realization that is not found is not an error: the solution then carries
@@ -141,7 +141,8 @@ def solve(design: Design, *, realize: bool = True, other_loops: bool = True,
     message)`` is called during a fit (it may raise to stop the fit). ``hint``: a solution of
     a nearby design (the previous drag step) whose realization is tried first on the same
     loop (:func:`realize.warm_start`, certified as any other answer) and whose fit starts the
-    first evolution start.
+    first evolution start. ``fit``: an :class:`evolution.FitResult` already computed for this
+    design's targets (the studio's drag preview), used instead of running the evolution.
 
     The motion (four-pose; a fit's is converted), its factorizations, loops and singularity
     are computed in :func:`unit_length` from the targets put on the :func:`on_unit_grid`, and
@@ -151,17 +152,17 @@ def solve(design: Design, *, realize: bool = True, other_loops: bool = True,
     check_pose_count(design)
     poses = design_poses(design)
     unit = unit_length(poses)
-    fit = None
     if design.motion.method == "fit":
         from paraloop_core.motion import evolution  # only needed for fitted motions
 
         warm = None if hint is None or hint.fit is None else hint.fit.factors
-        fit = evolution.fit_motion(poses, inertia_of(design),
-                                   evolution.evolution_settings(design.evolution), progress,
-                                   warm)
+        fit = fit or evolution.fit_motion(poses, inertia_of(design),
+                                          evolution.evolution_settings(design.evolution),
+                                          progress, warm)
         c_rel, pose_t, mu = dq.scale_lengths(fit.motion_rel, 1.0 / unit), fit.closest_t, None
         reference, reference_u = fit.reference, dq.scale_lengths(fit.reference, 1.0 / unit)
     else:
+        fit = None
         pos, wxyz = design.pose_array
         poses_u = dq.from_pos_wxyz(on_unit_grid(pos / unit), wxyz)
         c_rel, pose_t, mu = _four_pose(design, poses_u, unit)

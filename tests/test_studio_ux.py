@@ -19,6 +19,7 @@ from app.panels.design import loop_label, loop_of_label, score_text
 from app.scene import label_positions
 from app.state import rescaled
 from paraloop_core import design as design_mod
+from paraloop_core import pipeline
 from tests import test_studio_fabrication
 from tests.test_studio_fabrication import open_studio
 from tests.test_studio_server import click, gizmo, settle, upload
@@ -220,15 +221,28 @@ def test_restore_offer_can_be_discarded(tmp_path):
 
 
 def test_a_fit_design_previews_from_one_start_and_fits_fully_on_release():
+    """A drag refits one start (preview); the release shows that fit with its certified
+    realization at once and asks for the multi-start fit, which replaces it only if it fits
+    better (so the result is never worse than the plain multi-start fit of the design)."""
     server, app = open_studio("sun-path-fit")
     try:
         starts = app.state.design.evolution["starts"]
         assert starts > 1 and app.solution.fit.starts_tried == starts
         p = app.state.design.poses[7].position
         gizmo(app, 7, position=p + 0.02, phases=("update",))
-        assert app.solution.fit.starts_tried == 1  # the drag preview
+        quick = app.solution.fit
+        assert quick.starts_tried == 1  # the drag preview
+        seen = []
+        draw = app._solve_and_draw
+        app._solve_and_draw = lambda *a: (draw(*a), seen.append((
+            a[2], app.solution.fit, app.solution.realization, app.panels.status.content)))
         gizmo(app, 7, position=p + 0.02, phases=("end",))
-        assert app.solution.fit.starts_tried == starts
+        (lvl1, fit1, real1, status1), (lvl2, fit2, _, status2) = seen
+        assert (lvl1, lvl2) == (studio_mod.FULL, studio_mod.REFINE)
+        assert fit1 is quick and real1 is not None and "refining it with" in status1
+        cold = pipeline.solve(app.state.design, realize=False).fit
+        assert fit2.cost <= min(quick.cost, cold.cost) * (1 + 1e-9)
+        assert "refining" not in status2 and app.solution.realization is not None
     finally:
         app.close()
         server.stop()

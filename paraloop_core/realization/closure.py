@@ -50,36 +50,54 @@ def _dqmul(a: list, b: list) -> list:
     return _qmul(pa, pb) + [x + y for x, y in zip(_qmul(pa, db), _qmul(da, pb), strict=True)]
 
 
-def _exact_defect(joint_factors: np.ndarray) -> list[list[Fraction]]:
-    """Exact coefficients (ascending) of ``vec(P)`` and ``Q`` of ``Pi(t)`` (7 x 7 Fractions)
-    for the float factors ``(6, 8)``, from their binary values in integer arithmetic."""
+def _dyadic(x: float) -> tuple[int, int]:
+    """``(m, e)`` with ``x = m 2^e`` exactly (a float is a dyadic rational)."""
+    f = Fraction(x)
+    return f.numerator, -(f.denominator.bit_length() - 1)
+
+
+def _to_float(m: int, e: int) -> float:
+    """``|m| 2^e`` as a float, rounded up (a hair: the result bounds the exact value)."""
+    m = abs(m)
+    cut = max(m.bit_length() - 60, 0)  # keep 60 bits: truncation < 2^-59 relative
+    x = math.ldexp(float(m >> cut), e + cut) * (1.0 + 2.0**-50)
+    return x if x > 1e-300 or not m else 1e-300  # never round a defect down to nothing
+
+
+def _exact_defect(joint_factors: np.ndarray) -> tuple[list[list[int]], int]:
+    """Exact coefficients (ascending) of ``vec(P)`` and ``Q`` of ``Pi(t)`` for the float
+    factors ``(6, 8)``, from their binary values: ``(ints (7 x 7), e)``, value ``int 2^e``."""
     lin = loops.joint_polys(np.asarray(joint_factors, dtype=np.float64))  # (6, 2, 8)
-    fr = [[[Fraction(float(x)) for x in c] for c in f] for f in lin]
-    den = max(x.denominator for f in fr for c in f for x in c)  # a power of two
-    prod = [[int(x * den) for x in c] for c in fr[0]]
-    for f in fr[1:]:  # ascending coefficient lists of 8-int lists
-        g = [[int(x * den) for x in c] for c in f]
+    dy = [[[_dyadic(float(x)) for x in c] for c in f] for f in lin]
+    e = min(ex for f in dy for c in f for _, ex in c)  # every value an int times 2^e
+    ints = [[[m << (ex - e) for m, ex in c] for c in f] for f in dy]
+    prod = ints[0]
+    for g in ints[1:]:  # ascending coefficient lists of 8-int lists
         out = [[0] * 8 for _ in range(len(prod) + 1)]
         for i, a in enumerate(prod):
             for j, b in enumerate(g):
                 out[i + j] = [x + y for x, y in zip(out[i + j], _dqmul(a, b), strict=True)]
         prod = out
-    scale = Fraction(1, den**6)
-    return [[c[k] * scale for k in range(1, 8)] for c in prod]
+    return [c[1:] for c in prod], 6 * e
 
 
-def _in_chart(coeffs: list[list[Fraction]], alpha: float, beta: float) -> np.ndarray:
+def _in_chart(coeffs: tuple[list[list[int]], int], alpha: float, beta: float) -> np.ndarray:
     """``(7, 2)`` norms (rounded up) of the vec(P) and Q coefficients of ``Pi(alpha s + beta)``
     in s: exact substitution, so a chart that centres the norm roots keeps the sums tight."""
-    al, be = Fraction(alpha), Fraction(beta)
-    n = len(coeffs)
-    out = []
+    ints, e = coeffs
+    (am, ae), (bm, be) = _dyadic(alpha), _dyadic(beta)
+    n = len(ints)
+    out = np.empty((n, 2))
     for k in range(n):  # coefficient of s^k: sum_j c_j C(j, k) beta^(j-k) alpha^k
-        col = [sum((coeffs[j][m] * math.comb(j, k) * be ** (j - k) for j in range(k, n)),
-                   Fraction(0)) * al**k for m in range(7)]
-        out.append([math.hypot(*(float(x) for x in col[:3])),
-                    math.hypot(*(float(x) for x in col[3:]))])
-    return np.array(out) * (1.0 + 2.0**-48)  # float() rounds to nearest: a hair up
+        # beta^(j-k) = bm^(j-k) 2^(be (j-k)): bring every term to 2^(be (n-1-k))
+        terms = [(math.comb(j, k) * bm ** (j - k)) << (-be * (n - 1 - j)) if be <= 0 else
+                 (math.comb(j, k) * bm ** (j - k)) << (be * (j - k)) for j in range(k, n)]
+        shift = e + k * ae + (be * (n - 1 - k) if be <= 0 else 0)
+        col = [am**k * sum(t * ints[j][m] for t, j in zip(terms, range(k, n), strict=True))
+               for m in range(7)]
+        out[k] = [math.hypot(*(_to_float(c, shift) for c in col[:3])),
+                  math.hypot(*(_to_float(c, shift) for c in col[3:]))]
+    return out * (1.0 + 2.0**-48)  # hypot rounds too: a hair up
 
 
 def reading_gap(joint_factors: np.ndarray) -> tuple[float, float]:
@@ -90,7 +108,7 @@ def reading_gap(joint_factors: np.ndarray) -> tuple[float, float]:
     exact = _exact_defect(jf)
     a = jf[:, 0]
     b = np.linalg.norm(jf[:, 1:4], axis=1)
-    if any(exact[6]) or not (np.isfinite(a).all() and (b > 0).all()):
+    if any(exact[0][6]) or not (np.isfinite(a).all() and (b > 0).all()):
         return float("inf"), float("inf")  # the leading coefficients are 1: no defect there
     (alpha, beta), extra = charts(jf)
     maps = [(1.0, 0.0), (alpha, beta), *extra]
