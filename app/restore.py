@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 
 import viser
 
+from app.state import absolute_mesh
 from app.worker import FULL
 from paraloop_core import design as design_mod
 from paraloop_core.design import Design
@@ -78,3 +79,18 @@ class RestoreOffer:
         for handle in (self.text, self.restore, self.discard):
             handle.remove()
         return True
+
+
+def offer_restore(studio: StudioHost, design_path: Path | None) -> str | None:
+    """Offer the autosave when it is newer than the opened file (``studio.restore_offer``);
+    returns a line for the terminal, or None."""
+    found = newer_autosave(studio.state.autosave_path, design_path)
+    if found is None or isinstance(found, str):
+        return found
+    design, mtime = found
+    same = design_mod.design_to_dict(absolute_mesh(design))
+    if same == design_mod.design_to_dict(absolute_mesh(studio.state.design)):
+        return None  # nothing unsaved: the edits were undone before the autosave
+    studio.restore_offer = RestoreOffer(studio, design, mtime)
+    return (f"unsaved changes from {time.strftime('%H:%M', time.localtime(mtime))} found in "
+            f"{studio.state.autosave_path}: the page offers to restore them")

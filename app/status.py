@@ -1,4 +1,4 @@
-"""The studio's status-line texts: the realization note and the unit warning."""
+"""The studio's status line: its text, the realization note and the unit warning."""
 
 from __future__ import annotations
 
@@ -36,3 +36,26 @@ def realization_note(sol: pipeline.Solution) -> str:
     return (f"Realized loop {sol.design.loop}: bar radius {real.radius:.3g}, "
             f"min clearance {real.min_clearance:.3g}; certified thickest: every bar and pin "
             f"{rad.uniform:.3g}, per bar " + ", ".join(f"{r:.3g}" for r in rad.per_bar) + ".")
+
+
+def status_line(sol: pipeline.Solution, *, full: bool, ms: float, note: str, ghost: bool,
+                moved: bool, refine_starts: int | None) -> str:
+    """The status after drawing ``sol``: a full update or a preview (``moved``: it shows the
+    last realization moved along), ``note`` why there is no realization ('' if there is one),
+    ``ghost`` the last realized linkage shown faint, ``refine_starts`` the starts of the
+    multi-start fit that follows a quick one (None: none follows)."""
+    if full and not note:
+        note = realization_note(sol)
+    elif note and ghost:
+        note += " The last realized linkage is shown faint."
+    if not full and moved:
+        note = "Linkage: the last realization moved along, its minima checked exactly; " \
+               "certified collision-free on release."
+    if refine_starts is not None:
+        note += (f" Motion: the drag's one-start fit; refining it with {refine_starts} starts "
+                 "in the background.")
+    # "ok" only when there is a loop to show (or none was asked for)
+    word = "⚠ no collision-free realization" if full and sol.realization is None and \
+        sol.design.realization.enabled else "ok"
+    kind = "full update" if full else "preview"
+    return f"**Status:** {word} ({kind} {ms:.0f} ms). {note}{scale_warning(sol.design)}"

@@ -32,11 +32,11 @@ from app.notices import Notices
 from app.panels.design import Panels
 from app.panels.fabrication import FabricationPanel
 from app.plots import Plots
-from app.restore import RestoreOffer, newer_autosave
+from app.restore import RestoreOffer, offer_restore
 from app.scene import SceneView, design_scale
 from app.solver import Solver
 from app.state import StudioState, absolute_mesh, autosave_path_for, find_mesh, rescaled
-from app.status import realization_note, scale_warning, unit_factor
+from app.status import scale_warning, status_line, unit_factor
 from app.worker import FRAME, FULL, PREVIEW, REFINE, NewestWorker
 from paraloop_core import design as design_mod
 from paraloop_core import pipeline
@@ -330,25 +330,15 @@ class Studio:
                 self.plots.update(sol)
         if full:
             self.fabrication.mark_stale(sol)
-        if full and not note:
-            note = realization_note(sol)
-        elif note and self.scene.ghost is not None:
-            note += " The last realized linkage is shown faint."
-        kind = "full update" if full else "preview"
-        if not full and preview is not None:
-            note = "Linkage: the last realization moved along, its minima checked exactly; " \
-                   "certified collision-free on release."
-        # "ok" only when there is a loop to show (or none was asked for)
-        word = "⚠ no collision-free realization" if full and sol.realization is None and \
-            sol.design.realization.enabled else "ok"
+        refine = None
         if self._refine_for == version:
-            starts = evolution_settings(design.evolution).starts
-            note += (f" Motion: the drag's one-start fit; refining it with {starts} starts in "
-                     "the background.")
+            refine = evolution_settings(design.evolution).starts
             self.worker.request(REFINE)
-        unusual = scale_warning(design)
-        self.panels.status.content = f"**Status:** {word} ({kind} {ms:.0f} ms). {note}{unusual}"
-        self.panels.rescale.visible = bool(unusual)
+        self.panels.status.content = status_line(
+            dataclasses.replace(sol, design=design), full=full, ms=ms, note=note,
+            ghost=self.scene.ghost is not None, moved=preview is not None,
+            refine_starts=refine)
+        self.panels.rescale.visible = bool(scale_warning(design))
 
     def _play(self) -> None:
         """Animation frames at 30 Hz and the autosave every :data:`AUTOSAVE_SECONDS`."""
@@ -371,21 +361,6 @@ class Studio:
         self.worker.close()
         self.jobs.wait(10.0)
         self.autosave()
-
-
-def offer_restore(studio: Studio, design_path: Path | None) -> str | None:
-    """Offer the autosave when it is newer than the opened file (``app.restore``); returns a
-    line for the terminal, or None."""
-    found = newer_autosave(studio.state.autosave_path, design_path)
-    if found is None or isinstance(found, str):
-        return found
-    design, mtime = found
-    same = design_mod.design_to_dict(absolute_mesh(design))
-    if same == design_mod.design_to_dict(absolute_mesh(studio.state.design)):
-        return None  # nothing unsaved: the edits were undone before the autosave
-    studio.restore_offer = RestoreOffer(studio, design, mtime)
-    return (f"unsaved changes from {time.strftime('%H:%M', time.localtime(mtime))} found in "
-            f"{studio.state.autosave_path}: the page offers to restore them")
 
 
 def default_design_path() -> Path:
