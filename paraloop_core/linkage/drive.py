@@ -1,0 +1,407 @@
+"""Drive analysis of a loop with one joint as motor (paper Sec. 6.4): speeds, motor, torque.
+
+Joint angles as :func:`loops.joint_angles` (``dphi_i/dt = 2 s_i b_i / ((t - a_i)^2 + b_i^2)``,
+``a_i + i b_i`` the norm root of factor i). Motor joint m: motor angle ``theta = 2 atan2(b_m,
+a_m - t)`` in ``[0, 2 pi)``, its turn since home (t = inf) as t increases; gear ratios
+``g_j = dphi_j/dtheta``, ``g_j' = dg_j/dtheta`` in closed form. At motor speed ``omega(theta)``
+joint j moves at ``g_j omega`` (rad/s, signed), accelerating at ``g_j' omega^2 + g_j domega/dt``
+(rad/s^2). Formulas, sampling, methods, units and limits: docs/realization.md, Drive analysis.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.polynomial import polynomial as npoly
+
+from paraloop_core.algebra import dq, poly
+from paraloop_core.errors import ParaloopError
+from paraloop_core.linkage import loops
+from paraloop_core.tolerance import TOL
+
+TWO_PI = 2.0 * np.pi
+#: A joint of the resting link stays the motor unless another joint's worst peak speed ratio
+#: is smaller by more than this factor (a grounded motor needs no moving cables).
+PREFER_FACTOR = 1.5
+SAMPLES = 256  #: default samples per cycle of each sample family (:func:`_motor_angles`)
+_REFINE = 0.25  # schedule steps keep Delta |g'/g| <= this: TOPP's step maps stay increasing
+_RTOL = 1e-9  # limits and cycle time hold to this (rounding of the final scaling)
+_SWEEPS = 60  # periodic passes of the schedule recursions (2 sufficed in all tests)
+_CHAIN = np.where(np.arange(6)[:, None] <= 3, np.tri(6, k=-1), -np.tri(6).T)  # link_poses
+
+
+class InfeasibleScheduleError(ParaloopError):
+    """No motor profile meets the limits: ``min_cycle_time`` (s), ``accel_needed`` (rad/s^2 for
+    the requested cycle time, same ratio), ``min_speed_ratio`` (needed to exceed); inf: none."""
+
+    reason = "infeasible-schedule"
+
+    def __init__(self, message: str, tmin: float, need: float, ratio: float):
+        super().__init__(message)
+        self.min_cycle_time, self.accel_needed, self.min_speed_ratio = tmin, need, ratio
+
+
+@dataclass(frozen=True)
+class ConstantSpeed:
+    """See :func:`constant_speed`; arrays ``(N,)`` / ``(N, 6)``, peaks ``(6,)`` per joint."""
+
+    motor: int
+    cycle_time: float  # s
+    theta: np.ndarray  # motor angles, rad (time = theta / omega)
+    t: np.ndarray  # loop parameters
+    velocity: np.ndarray  # rad/s, signed
+    acceleration: np.ndarray  # rad/s^2
+    peak_speed_ratio: np.ndarray  # max|v_j| / mean|v_j| (mean = 2 pi / cycle_time), exact
+    peak_accel: np.ndarray  # max|a_j|, rad/s^2, exact
+
+
+@dataclass(frozen=True)
+class MotorChoice:
+    """See :func:`recommend_motor`."""
+
+    motor: int
+    worst_speed_ratio: float  # of the chosen motor: max over joints of peak_speed_ratio
+    peak_speed_ratio: np.ndarray  # (6 motors, 6 joints)
+    preferred: tuple[int, int]  # the resting link's joints
+    reason: str
+
+
+@dataclass(frozen=True)
+class SpeedSchedule:
+    """See :func:`speed_schedule`; node arrays ``(N+1,)`` / ``(N+1, 6)``, theta 0 .. 2 pi."""
+
+    motor: int
+    cycle_time: float
+    theta: np.ndarray  # rad; the last node closes the cycle
+    t: np.ndarray
+    time: np.ndarray  # s, 0 .. cycle_time
+    motor_speed: np.ndarray  # rad/s > 0, last = first
+    velocity: np.ndarray  # joint velocities, rad/s
+    acceleration: np.ndarray  # rad/s^2 in the step starting at the node (last row = first)
+    achieved_speed_ratio: np.ndarray  # (6,) max|v_j| / (2 pi / cycle_time)
+    achieved_accel: np.ndarray  # (6,) max|a_j| at both step ends and midpoints
+    fastest_cycle_time: float  # s, of the fastest admissible profile (then slowed down)
+
+
+@dataclass(frozen=True)
+class MotorTorque:
+    """See :func:`motor_torque`."""
+
+    motor: int
+    theta: np.ndarray  # (N,) rad
+    t: np.ndarray
+    torque: np.ndarray  # (N,) N m, positive along increasing theta
+    peak_torque: float  # max|torque|, N m
+    moving_mass_kg: float  # every link but the resting one
+
+
+def _factors(jf: np.ndarray, batched: bool = False) -> tuple[np.ndarray, ...]:
+    jf = np.asarray(jf, dtype=np.float64)
+    if jf.shape[-2:] != (6, 8) or (jf.ndim != 2 and not batched):
+        raise ValueError(f"joint factors must have shape {'(..., 6, 8)' if batched else '(6, 8)'}"
+                         f", got {jf.shape}")
+    if not np.isfinite(jf).all():
+        raise ValueError("joint factors must be finite")
+    b = np.linalg.norm(jf[..., 1:4], axis=-1)
+    if (b <= TOL.zero * (1.0 + np.abs(jf[..., 0]))).any():
+        raise ValueError("a joint factor has no rotation axis (zero vector part)")
+    return jf, jf[..., 0], b
+
+
+def _index(name: str, value: int, lo: int, hi: int) -> int:
+    ok = isinstance(value, (int, np.integer)) and not isinstance(value, bool)
+    if not (ok and lo <= value <= hi):
+        raise ValueError(f"{name} must be an integer in {lo}..{hi}, got {value!r}")
+    return int(value)
+
+
+def _positive(name: str, value: float) -> float:
+    v = float(value) if isinstance(value, (int, float, np.number)) else np.nan
+    if not (np.isfinite(v) and v > 0):
+        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+    return v
+
+
+def _array(name: str, x: np.ndarray, shape: tuple[int, ...] | None) -> np.ndarray:
+    x = np.asarray(x, dtype=np.float64)
+    if (x.shape != shape if shape else x.ndim != 1) or not np.isfinite(x).all():
+        raise ValueError(f"{name} must be finite, of shape {shape or '(N,)'}, got {x.shape}")
+    return x
+
+
+def joint_rates(jf: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Exact ``dphi/dt`` and ``d2phi/dt2 = -4 s b (t - a) / D^2`` ``(T, 6)`` (rad per unit t,
+    per t^2) of :func:`loops.joint_angles` at parameters ``t`` ``(T,)``; 0 at t = +-inf."""
+    _, a, b = _factors(jf)
+    t = np.atleast_1d(np.asarray(t, dtype=np.float64))
+    if t.ndim != 1 or np.isnan(t).any():
+        raise ValueError(f"t must be a 1-D array without NaN, got shape {t.shape}")
+    fin, s = np.isfinite(t)[:, None], loops.JOINT_SIGN
+    u = np.where(fin, t[:, None] - a, 0.0)
+    h = np.hypot(u, b)  # b/h, u/h in [-1, 1]: no overflow for finite t
+    return (np.where(fin, 2.0 * s * (b / h) / h, 0.0),
+            np.where(fin, -4.0 * s * (b / h) * (u / h) / h**2, 0.0))
+
+
+def _gear(a: np.ndarray, b: np.ndarray, m: int, theta: np.ndarray) -> tuple[np.ndarray, ...]:
+    """``t`` ``(T,)``, ``g``, ``g'`` ``(T, 6)`` of motor m at motor angles ``theta`` ``(T,)``."""
+    half = 0.5 * theta
+    with np.errstate(divide="ignore"):  # theta = 0: home, t = -inf
+        t = np.where(np.sin(half) == 0.0, -np.inf, a[m] - b[m] * np.cos(half) / np.sin(half))
+    fin = np.isfinite(t)[:, None]
+    s = np.where(fin, t[:, None] - a[m], 0.0)
+    delta = a - a[m]
+    hm, hj = np.hypot(s, b[m]), np.hypot(s - delta, b)
+    rho, w = np.where(fin, (hm / hj) ** 2, 1.0), s / hj  # D_m / D_j
+    nd = np.where(fin, delta * w * w + (b[m] ** 2 - b**2 - delta**2) * (w / hj)
+                  - delta * (b[m] / hj) ** 2, delta)  # N_j / D_j
+    return t, loops.JOINT_SIGN * (b / b[m]) * rho, -loops.JOINT_SIGN * (b / b[m] ** 2) * rho * nd
+
+
+def _ratio_critical(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``s = t - a_m`` ``(..., 6, 6, 3)`` [motor, joint] where |g_j| may peak: N_j = 0, inf."""
+    am, bm = a[..., :, None], b[..., :, None]
+    delta = a[..., None, :] - am
+    b1 = bm**2 - b[..., None, :] ** 2 - delta**2
+    q = -0.5 * (b1 + np.where(b1 >= 0, 1.0, -1.0) * np.sqrt(b1**2 + 4 * delta**2 * bm**2))
+    with np.errstate(divide="ignore", invalid="ignore"):  # 0/0 (delta = 0): inf is a candidate
+        s = np.stack([q / delta, -delta * bm**2 / q, np.full_like(q, np.inf)], axis=-1)
+    return np.where(np.isnan(s), np.inf, s)
+
+
+def peak_speed_ratios(jf: np.ndarray) -> np.ndarray:
+    """Exact ``max |g_j|`` ``(..., 6, 6)`` [motor, joint] of loops ``(..., 6, 8)``: joint j's
+    peak over mean speed with motor m at constant speed (closed form, ~0.1 ms per call)."""
+    _, a, b = _factors(jf, batched=True)
+    s = _ratio_critical(a, b)
+    am, bm, bj = a[..., :, None, None], b[..., :, None, None], b[..., None, :, None]
+    fin = np.isfinite(s)
+    sf = np.where(fin, s, 0.0)
+    hj = np.hypot(sf - (a[..., None, :, None] - am), bj)
+    return ((bj / bm) * np.where(fin, (np.hypot(sf, bm) / hj) ** 2, 1.0)).max(axis=-1)
+
+
+def _accel_critical(a: np.ndarray, b: np.ndarray, m: int) -> np.ndarray:
+    """t where |g_j'| may peak (real parts: spurious candidates only add samples)."""
+    out = [np.zeros(0)]
+    for j in range(6):  # six small polynomials, not a loop over samples
+        d = a[j] - a[m]
+        nd = npoly.polymul([-d * b[m] ** 2, b[m] ** 2 - b[j] ** 2 - d * d, d], [b[m] ** 2, 0, 1])
+        q = npoly.polysub(npoly.polymul(npoly.polyder(nd), [d * d + b[j] ** 2, -2.0 * d, 1.0]),
+                          2.0 * npoly.polymul(nd, [-2.0 * d, 2.0]))
+        q = npoly.polytrim(q, 1e-13 * max(np.abs(q).max(), 1e-300))
+        if len(q) > 1:
+            out.append(a[m] + npoly.polyroots(q).real)
+    return np.concatenate(out)
+
+
+def _motor_angles(a: np.ndarray, b: np.ndarray, m: int, n: int) -> np.ndarray:
+    """Sorted motor angles ``(N,)`` in ``[0, 2 pi)``: ``2 pi k / n``; per norm root the t where
+    its joints turn uniformly (``a + b cot(pi (k + 1/2) / n)``, :func:`poly.cycle_parameters`);
+    every critical point of each ``g_j`` and ``g_j'``. So no joint turns more than ``2 pi / n``
+    between samples, each ``g_j``, ``g_j'`` is monotone there, and their extrema are samples."""
+    t = np.concatenate([poly.cycle_parameters(a[:3], b[:3], n),
+                        a[m] + _ratio_critical(a, b)[m].ravel(), _accel_critical(a, b, m)])
+    th = np.mod(2.0 * np.arctan2(b[m], a[m] - t), TWO_PI)  # t = +-inf -> 0 (home)
+    th = np.unique(np.concatenate([np.arange(n) * (TWO_PI / n), th[np.isfinite(th)]]))
+    return th[np.concatenate([[True], np.diff(th) > 1e-12])]  # near-duplicates add nothing
+
+
+def constant_speed(jf: np.ndarray, motor: int, cycle_time: float, samples: int = SAMPLES,
+                   theta: np.ndarray | None = None) -> ConstantSpeed:
+    """Joint ``motor`` at constant ``omega = 2 pi / cycle_time`` (s): velocities ``g omega``,
+    accelerations ``g' omega^2`` at :func:`_motor_angles` (``samples`` per family) or at
+    ``theta`` (rad); peaks always from the adaptive samples (exact maxima over the cycle)."""
+    _, a, b = _factors(jf)
+    m, ct = _index("motor", motor, 0, 5), _positive("cycle_time", cycle_time)
+    grid = _motor_angles(a, b, m, _index("samples", samples, 8, 10**7))
+    t, g, gp = _gear(a, b, m, grid)
+    w = TWO_PI / ct
+    peak_ratio, peak_acc = np.abs(g).max(0), np.abs(gp).max(0) * w * w
+    if theta is not None:
+        grid = _array("theta", theta, None)
+        t, g, gp = _gear(a, b, m, grid)
+    return ConstantSpeed(m, ct, grid, t, g * w, gp * w * w, peak_ratio, peak_acc)
+
+
+def recommend_motor(jf: np.ndarray, resting_link: int,
+                    prefer_factor: float = PREFER_FACTOR) -> MotorChoice:
+    """The motor joint minimising the worst peak speed ratio over all joints, preferring the
+    resting (grounded) link's joints ``resting_link - 1``, ``resting_link`` (mod 6) unless
+    another is better by more than ``prefer_factor``; ``reason`` says why in words."""
+    rest = _index("resting_link", resting_link, 0, 5)
+    factor = _positive("prefer_factor", prefer_factor)
+    ratios = peak_speed_ratios(_factors(jf)[0])
+    worst = ratios.max(axis=1)
+    pref = ((rest - 1) % 6, rest)
+    bp, best = min(pref, key=lambda j: (worst[j], j)), int(np.argmin(worst))
+    keep = worst[bp] <= max(factor, 1.0) * (1 + 1e-9) * worst[best]  # ties: the resting link
+    motor, on = bp if keep else best, f"on link {rest}"
+    if motor == bp:
+        why = ("the best of all joints" if worst[bp] <= worst[best] else
+               f"within {factor:g}x of the best, joint {best} ({worst[best]:.3g})")
+        reason = f"joint {bp} ({on}, resting): worst peak speed ratio {worst[bp]:.3g}, {why}"
+    else:
+        reason = (f"joint {best}: worst peak speed ratio {worst[best]:.3g}, better by more than "
+                  f"{factor:g}x than joint {bp} {on}, resting ({worst[bp]:.3g}); the motor "
+                  "rides a moving link")
+    return MotorChoice(int(motor), float(worst[motor]), ratios, pref, reason)
+
+
+def smooth_drive_penalty(jf: np.ndarray, motor: int | None = None) -> float | np.ndarray:
+    """Worst peak speed ratio (>= 1; 1 = all joints turn uniformly) of ``motor``, else of the
+    best motor, of loops ``(..., 6, 8)``: ``(...)``, a float for one loop (~0.1 ms per call)."""
+    worst = peak_speed_ratios(jf).max(axis=-1)
+    out = worst.min(axis=-1) if motor is None else worst[..., _index("motor", motor, 0, 5)]
+    return float(out) if np.ndim(out) == 0 else out
+
+
+def _schedule_grid(a: np.ndarray, b: np.ndarray, m: int, n: int) -> tuple[np.ndarray, ...]:
+    """nodes ``(N+1,)``; g, g' ``(2N+1, 6)`` (nodes, midpoints); q/p, 1/p ``(N, 18)``; pair; t."""
+    th = _motor_angles(a, b, m, n)
+    for _ in range(60):  # halve steps until Delta |g'/g| <= _REFINE (g_j never vanishes)
+        nodes = np.append(th, TWO_PI)
+        k, mids = len(th), 0.5 * (nodes[:-1] + nodes[1:])
+        t, g, gp = _gear(a, b, m, np.concatenate([nodes, mids]))
+        rel = np.abs(gp / g).max(axis=1)
+        bad = np.diff(nodes) * np.maximum.reduce([rel[:k], rel[1:k + 1], rel[k + 1:]]) > _REFINE
+        if not bad.any():
+            break
+        th = np.sort(np.concatenate([th, mids[bad]]))
+    # at x = (1 - lam) x_k + lam x_{k+1}, x' = (x_{k+1} - x_k) / Delta, the acceleration
+    # g' x + g x'/2 is sign(g) (p x_{k+1} - q x_k) with p, q >= |g| / (4 Delta) > 0
+    half = 0.5 / np.diff(nodes)[:, None, None]
+    gg = np.stack([g[:k], g[k + 1:], g[1:k + 1]], axis=1)
+    gq = np.stack([gp[:k], gp[k + 1:], gp[1:k + 1]], axis=1) * np.sign(gg)
+    lam = np.array([0.0, 0.5, 1.0])[:, None]
+    p = (np.abs(gg) * half + gq * lam).reshape(k, -1)
+    sig = (np.abs(gg) * half - gq * (1.0 - lam)).reshape(k, -1) / p
+    ds = sig[:, :, None] - sig[:, None, :]
+    with np.errstate(divide="ignore", invalid="ignore"):  # lo_i(x) <= hi_j(x) for all i, j
+        pair = np.where(ds > 0, (1.0 / p[:, :, None] + 1.0 / p[:, None, :]) / ds, np.inf)
+    return nodes, g, gp, sig, 1.0 / p, pair.min(axis=(1, 2)), t[: k + 1]
+
+
+def _caps(g: np.ndarray, v: float) -> np.ndarray:
+    """Caps on ``x = omega^2`` at nodes for joint speeds <= v (min over the neighbours)."""
+    c = v * v / (g**2).max(axis=1)
+    ext = np.concatenate([c[-2:-1], c[:-1], c[:2]])  # node N is node 0
+    return np.minimum(np.minimum(ext[:-2], ext[1:-1]), ext[2:])
+
+
+def _steps(nodes: np.ndarray, x: np.ndarray) -> np.ndarray:
+    return 2.0 * np.diff(nodes) / (np.sqrt(x[:-1]) + np.sqrt(x[1:]))  # exact, x linear per step
+
+
+def _fastest(gr: tuple[np.ndarray, ...], cap: np.ndarray, accel: float
+             ) -> tuple[np.ndarray, float]:
+    """Fastest admissible periodic ``x = omega^2`` ``(N+1,)`` and its time (s)."""
+    sig, eps = gr[3], accel * gr[4]
+    inv_s, eo, bound = 1.0 / sig, eps / sig, np.minimum(cap[:-1], accel * gr[5]).tolist()
+    n = len(bound)
+    beta, x = np.empty(n + 1), np.empty(n + 1)
+    end = bound[0]
+    for _ in range(_SWEEPS):  # scalar recursions: the one loop over samples
+        beta[n] = bk = end
+        for k in range(n - 1, -1, -1):
+            bk = beta[k] = min(bound[k], float((bk * inv_s[k] + eo[k]).min()))
+        if bk >= end * (1.0 - 1e-13):
+            break
+        end = bk
+    beta[0] = beta[n] = start = min(beta[0], end)
+    for _ in range(_SWEEPS):
+        x[0] = xk = start
+        for k in range(n):
+            xk = x[k + 1] = min(beta[k + 1], float((sig[k] * xk + eps[k]).min()))
+        if xk >= start * (1.0 - 1e-13):
+            break
+        start = xk
+    x[n] = x[0]
+    return x, float(_steps(gr[0], x).sum())
+
+
+def speed_schedule(jf: np.ndarray, motor: int, cycle_time: float, max_speed_ratio: float,
+                   max_accel: float, samples: int = SAMPLES) -> SpeedSchedule:
+    """Motor profile keeping every joint's speed <= ``max_speed_ratio * 2 pi / cycle_time`` and
+    |acceleration| <= ``max_accel`` (rad/s^2), cycle time exactly ``cycle_time`` (s): TOPP in
+    ``x = omega^2``, slowed down uniformly. Raises :class:`InfeasibleScheduleError`."""
+    _, a, b = _factors(jf)
+    m, ct = _index("motor", motor, 0, 5), _positive("cycle_time", cycle_time)
+    ratio, acc = _positive("max_speed_ratio", max_speed_ratio), _positive("max_accel", max_accel)
+    gr = _schedule_grid(a, b, m, _index("samples", samples, 8, 10**7))
+    nodes, g, gp, k = gr[0], gr[1], gr[2], len(gr[0])
+    x, fast = _fastest(gr, _caps(g[:k], ratio * TWO_PI / ct), acc)
+    if fast > ct * (1.0 + 1e-12):  # caps scale with the mean speed, so T with accel A is
+        # the T = 1 problem with accel A T^2, fastest time decreasing in it: log bisection
+        head = (f"no motor-{m} speed schedule meets max_speed_ratio {ratio:g} and max_accel "
+                f"{acc:g} rad/s^2 in {ct:g} s (the fastest admissible profile takes {fast:.6g} s)")
+        cap1 = _caps(g[:k], ratio * TWO_PI)
+        at_cap = float(_steps(nodes, cap1).sum())  # time with unlimited acceleration
+        if at_cap >= 1.0 - 1e-9:
+            raise InfeasibleScheduleError(
+                f"{head}; no cycle time works: max_speed_ratio must exceed {ratio * at_cap:.6g}"
+                " (the cycle mean of the largest joint gear ratio)", np.inf, np.inf, ratio * at_cap)
+        lo = hi = acc * ct * ct
+        while _fastest(gr, cap1, hi)[1] > 1.0:
+            lo, hi = hi, 4.0 * hi
+        while hi > lo * (1.0 + 1e-9):
+            mid = float(np.sqrt(lo * hi))
+            lo, hi = (mid, hi) if _fastest(gr, cap1, mid)[1] > 1.0 else (lo, mid)
+        tmin, need = float(np.sqrt(hi / acc)) * (1 + 1e-9), hi / ct**2 * (1 + 1e-9)
+        raise InfeasibleScheduleError(
+            f"{head}; the smallest cycle time that works for these limits is {tmin:.9g} s; for "
+            f"{ct:g} s use max_accel >= {need:.6g} rad/s^2, or max_speed_ratio "
+            f"{ratio * fast / ct:.6g} with max_accel {acc * (fast / ct) ** 2:.6g} rad/s^2",
+            tmin, need, ratio * at_cap)
+    x = x * (fast / ct) ** 2
+    w, slope = np.sqrt(x), (0.5 * np.diff(x) / np.diff(nodes))[:, None]  # domega/dtime
+    at = [gp[i] * xi[:, None] + g[i] * slope for i, xi in (
+        (slice(0, k - 1), x[:-1]), (slice(1, k), x[1:]), (slice(k, None), 0.5 * (x[:-1] + x[1:])))]
+    vel = g[:k] * w[:, None]
+    got_ratio, got_acc = np.abs(vel).max(0) / (TWO_PI / ct), np.abs(np.concatenate(at)).max(0)
+    if got_ratio.max() > ratio * (1 + _RTOL) or got_acc.max() > acc * (1 + _RTOL):
+        raise RuntimeError("speed schedule violates its limits (bug)")
+    return SpeedSchedule(m, ct, nodes, gr[6],
+                         np.concatenate([[0.0], np.cumsum(_steps(nodes, x))]), w, vel,
+                         np.concatenate([at[0], at[0][:1]]), got_ratio, got_acc, fast)
+
+
+def motor_torque(jf: np.ndarray, motor: int, masses_kg: np.ndarray, centers_home_m: np.ndarray,
+                 gravity_world: np.ndarray = (0.0, 0.0, -9.81),
+                 T_world_base: np.ndarray | None = None, samples: int = SAMPLES, *,  # noqa: N803
+                 length_unit_m: float = 1.0, theta: np.ndarray | None = None,
+                 resting_link: int = 0) -> MotorTorque:
+    """Quasi-static motor torque (N m) against gravity, ``dU/dtheta = -sum_l m_l g_rest .
+    dc_l/dtheta`` (virtual work) with ``resting_link`` held still (velocities relative to it,
+    in its frame); link masses ``(6,)``, centres ``(6, 3)`` (m, base frame, home);
+    ``T_world_base`` 4x4 or dual quaternion (8,): the resting link's home frame in the world,
+    None = identity; ``length_unit_m``: metres per length unit of ``jf``. At
+    :func:`_motor_angles` or ``theta``; see docs/realization.md."""
+    _, a, b = _factors(jf)
+    m, unit = _index("motor", motor, 0, 5), _positive("length_unit_m", length_unit_m)
+    rest = _index("resting_link", resting_link, 0, 5)
+    mass = _array("masses_kg", masses_kg, (6,))
+    if (mass < 0).any():
+        raise ValueError("masses_kg must be >= 0")
+    tf = np.eye(4) if T_world_base is None else np.asarray(T_world_base, dtype=np.float64)
+    if tf.shape not in ((4, 4), (8,)) or not np.isfinite(tf).all():
+        raise ValueError(f"T_world_base must be a finite 4x4 matrix or (8,), got {tf.shape}")
+    r = tf[:3, :3] if tf.ndim == 2 else dq.rotation_matrix(tf) if tf[:4].any() else np.zeros((3, 3))
+    if np.abs(r @ r.T - np.eye(3)).max() > TOL.orthonormal or np.linalg.det(r) < 0:
+        raise ValueError("T_world_base must be a rigid motion (its rotation is not proper)")
+    g_base = r.T @ _array("gravity_world", gravity_world, (3,))
+    th = (_motor_angles(a, b, m, _index("samples", samples, 8, 10**7)) if theta is None
+          else _array("theta", theta, None))
+    t, g, _ = _gear(a, b, m, th)
+    poses = loops.link_poses(jf, t)
+    c = dq.transform_points(poses,  # (T, 6, 3) in the units of jf
+                            _array("centers_home_m", centers_home_m, (6, 3)) / unit)
+    twist = np.einsum("lj,tj,tjk->tlk", _CHAIN, g, loops.axes_at(jf, t))
+    twist = twist - twist[:, rest:rest + 1]  # relative to the resting link (base frame)
+    dc = np.cross(twist[..., :3], c) + twist[..., 3:]  # point velocity per rad: w x c + v0
+    # into the resting link's frame (its rotation over the cycle; gravity is fixed there)
+    dc = np.einsum("tji,tlj->tli", dq.rotation_matrix(dq.normalize(poses[:, rest])), dc)
+    torque = -unit * np.einsum("l,tlk,k->t", mass, dc, g_base)
+    moving = float(mass.sum() - mass[rest])
+    return MotorTorque(m, th, t, torque, float(np.abs(torque).max()), moving)
