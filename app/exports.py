@@ -1,6 +1,8 @@
 """What the studio's export buttons download, and the fabrication settings as core options.
 
-*Export result* downloads the result JSON (:func:`export_files`); *Export all* one zip
+*Export result* downloads the result JSON (:func:`export_files`); *Animation* the realized
+loop over one cycle as an animated glTF (:func:`animation_file`, as ``paraloop animate``);
+*Export all* one zip
 ``paraloop-<design>.zip`` (:func:`export_zip`) with that JSON and, when the design has a
 realization, the printable parts of :func:`printable.export_printable`, as ``paraloop export``
 writes them (STL per link, 3MF plates, ``assembly.glb``, the assembly guide, ``report.json``
@@ -20,7 +22,7 @@ import numpy as np
 
 from app.state import FabSettings
 from paraloop_core import pipeline
-from paraloop_core.fabrication import export, printable, sizing
+from paraloop_core.fabrication import animate, export, printable, sizing
 from paraloop_core.fabrication.parts import PartSpec, design_scale
 
 #: Carving orders offered by the panel: target links first to last, each carved by the later.
@@ -38,6 +40,16 @@ def export_files(solution: pipeline.Solution) -> list[tuple[str, bytes]]:
     """Files ``(name, content)`` exported for a solved design: the result JSON."""
     result = json.dumps(pipeline.result_to_dict(solution), indent=1) + "\n"
     return [("paraloop-result.json", result.encode("utf-8"))]
+
+
+def animation_file(solution: pipeline.Solution) -> tuple[str, bytes]:
+    """``(name, .glb bytes)``: the realized loop over one cycle (:mod:`animate`); raises
+    ValueError when the design has no collision-free realization."""
+    real = solution.realization
+    if real is None:
+        raise ValueError("the design has no collision-free realization to animate")
+    glb = animate.animated_glb(real.joint_factors, real.points, real.radius)
+    return f"{slug(solution.design.name)}-cycle.glb", glb
 
 
 def parse_order(text: str) -> list[tuple[int, int]]:

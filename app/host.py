@@ -52,5 +52,8 @@ class StudioHost(Protocol):
     def download_export(self, event: Any) -> None:
         """*Download result*: the result files to the clicking browser."""
 
+    def download_animation(self, event: Any) -> None:
+        """*Animation*: the realized loop as an animated glTF to the clicking browser."""
+
     def upload_design(self, event: Any) -> None:
         """*Load design*: replace the design with an uploaded file."""

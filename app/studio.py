@@ -26,7 +26,7 @@ import numpy as np
 import viser
 
 from app import camera
-from app.exports import export_files, slug
+from app.exports import animation_file, export_files, slug
 from app.jobs import Cancelled, Jobs
 from app.notices import Notices
 from app.panels.design import Panels
@@ -136,6 +136,16 @@ class Studio:
             self.notify("Exporting the last valid design", self.error, error=True)
         for name, data in export_files(sol):
             self.send_file(event.client, name, data)
+
+    def download_animation(self, event: Any) -> None:
+        try:
+            if self.solution is None:
+                raise ValueError(self.error or "no solution yet")
+            name, data = animation_file(self.solution)
+        except ValueError as exc:
+            self.notify("Nothing to animate", str(exc), error=True)
+            return
+        self.send_file(event.client, name, data)
 
     def upload_design(self, event: Any) -> None:
         upload = event.target.value

@@ -5,7 +5,8 @@
 1. exact thin collision check of one 6R (9 pairs, whole cycle), motions precomputed and not;
 2. exact minimum distance of the 42 offset pairs of one realization;
 3. full ``realize`` over random AS and DB loops (median, 95th percentile, max);
-4. ``validate realization`` on a few motions with 2 workers, extrapolated to 1000 motions.
+4. ``validate realization`` on a few motions with 2 workers (a local Dask cluster, as the command
+   line runs it), extrapolated to 1000 motions.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
+from app.cli import batch  # noqa: E402
 from paraloop_core.realization import collision, polyline, realize  # noqa: E402
 from paraloop_core.validation import table1  # noqa: E402
 
@@ -70,7 +72,8 @@ def main() -> None:
 
     n = args.table_motions
     t0 = time.perf_counter()
-    table1.run(n, args.seed, workers=2)
+    with batch.Runner(workers=2) as runner:
+        table1.run(n, args.seed, runner.values)
     el = time.perf_counter() - t0
     print(f"validate realization --motions {n} --workers 2: {el:.1f} s "
           f"-> 1000 motions ~ {el * 1000 / n / 60:.1f} min")

@@ -36,7 +36,12 @@ class DesignFileError(ParaloopError):
 
     def __init__(self, field: str, message: str):
         super().__init__(f"{field}: {message}")
-        self.field = field
+        self.field, self.message = field, message
+
+    def __reduce__(self):
+        # pickle rebuilds an exception from its args (here the joined text), not from the two
+        # parts __init__ takes; a batch task's error travels back from a worker process
+        return type(self), (self.field, self.message), self.__dict__
 
 
 class RealizationError(ParaloopError):

@@ -411,6 +411,12 @@ def result_to_dict(sol: Solution) -> dict[str, Any]:
     return out
 
 
+def solve_to_dict(design: Design, realize: bool = True) -> dict[str, Any]:
+    """The result dict of ``design`` (:func:`solve`, :func:`result_to_dict`) in one pure call:
+    a task of a batch run, whose input and output cross process boundaries."""
+    return result_to_dict(solve(design, realize=realize))
+
+
 def save_result(sol: Solution, path: str | Path) -> None:
     """Write the result JSON of ``sol`` to ``path`` atomically (strict JSON: no NaN/Infinity)."""
     write_json_atomic(Path(path), result_to_dict(sol))

@@ -306,6 +306,9 @@ def test_save_export_and_upload(studio, tmp_path):
     result = json.loads(data)
     assert name == "paraloop-result.json" and result["format"] == "paraloop-result"
     assert len(result["loops"]) == 9
+    click(studio.panels.animation)  # the realized loop over one cycle, animated glTF
+    name, data = studio.downloads[-1]
+    assert name.endswith("-cycle.glb") and data[:4] == b"glTF" and len(data) > 10_000
     # a broken file: error notification, design kept
     before = studio.state.design
     upload(studio, "broken.json", b'{"format": "paraloop-design", "poses": [1, 2]}')

@@ -1,4 +1,5 @@
-"""The ``paraloop`` command line: ``solve``, ``validate ...``, ``export``, ``studio``.
+"""The ``paraloop`` command line: ``solve``, ``validate ...``, ``export``, ``animate``,
+``studio``.
 
 Every failure caused by the input prints one line ``error: <file>: <field>: <reason>`` on stderr;
 output paths are checked before any work starts, nothing is overwritten without ``--force`` and
@@ -10,13 +11,16 @@ no partial or temporary file is left behind. Exit codes (``docs/result-format.md
 from __future__ import annotations
 
 import argparse
+import functools
 import sys
 import traceback
+from collections.abc import Iterator
 from pathlib import Path
 
 from app import studio
+from app.cli import animate as animate_cmd
+from app.cli import batch, outputs, validate_evolution, validate_realization
 from app.cli import export as export_cmd
-from app.cli import outputs, validate_evolution, validate_realization
 from app.cli.outputs import EXIT_INTERNAL, EXIT_NOT_REALIZED, EXIT_OK, EXIT_REFUSED
 from paraloop_core import design as design_mod
 from paraloop_core import pipeline
@@ -56,11 +60,19 @@ def plan_solve(designs: list[Path], out: Path, force: bool) -> tuple[list[Path],
     return targets, not single
 
 
-def _solve_one(path: Path, target: Path, args: argparse.Namespace, out_dir: Path | None) -> int:
-    """Solve one design and write its result; returns its exit code."""
+def _loaded(paths: list[Path]) -> Iterator[design_mod.Design | batch.Outcome]:
+    """Each design read here (the paths are this machine's), or the error that refused it."""
+    for path in paths:
+        try:
+            yield design_mod.load_design(path)
+        except Exception as exc:  # reported in the design's turn, like a failed solve
+            yield batch.Outcome(error=exc)
+
+
+def _solve_one(path: Path, target: Path, solved: batch.Outcome, out_dir: Path | None) -> int:
+    """Report one design's outcome and write its result; returns its exit code."""
     try:
-        design = design_mod.load_design(path)
-        result = pipeline.result_to_dict(pipeline.solve(design, realize=not args.no_realize))
+        result = solved.get()
     except RealizationError as exc:
         print(f"error: {path}: {outputs.one_line(exc)}", file=sys.stderr)
         return EXIT_REFUSED if exc.reason == "bad-parameters" else EXIT_NOT_REALIZED
@@ -82,21 +94,29 @@ def _solve_one(path: Path, target: Path, args: argparse.Namespace, out_dir: Path
 
 
 def cmd_solve(args: argparse.Namespace) -> int:
-    """Solve each design in one process; write ``<stem>.result.json`` per solved design."""
+    """Solve each design (in this process, or as tasks of a Dask cluster: ``--workers``,
+    ``--dask``); write ``<stem>.result.json`` per solved design, in input order."""
     designs = [Path(name) for name in args.designs]
     out = Path(args.output)
     targets, is_dir = plan_solve(designs, out, args.force)
+    task = functools.partial(pipeline.solve_to_dict, realize=not args.no_realize)
+    bar = batch.Bar(len(designs), "designs") if sys.stderr.isatty() else None
     codes = []
-    for path, target in zip(designs, targets, strict=True):
-        try:
-            codes.append(_solve_one(path, target, args, out if is_dir else None))
-        except (KeyboardInterrupt, outputs.OutputError):
-            raise
-        except OSError as exc:
-            print(f"error: {target}: cannot write ({outputs.one_line(exc)})", file=sys.stderr)
-            codes.append(EXIT_REFUSED)
-        except Exception as exc:  # a bug: report it, go on with the other designs
-            codes.append(internal_error(f"{path}: ", exc, args.debug))
+    with batch.Runner.from_args(args) as runner:
+        solved = runner.outcomes(task, _loaded(designs), bar)
+        for path, target, outcome in zip(designs, targets, solved, strict=True):
+            if bar is not None:
+                bar.clear()
+            try:
+                codes.append(_solve_one(path, target, outcome, out if is_dir else None))
+            except (KeyboardInterrupt, outputs.OutputError):
+                raise
+            except OSError as exc:
+                print(f"error: {target}: cannot write ({outputs.one_line(exc)})",
+                      file=sys.stderr)
+                codes.append(EXIT_REFUSED)
+            except Exception as exc:  # a bug: report it, go on with the other designs
+                codes.append(internal_error(f"{path}: ", exc, args.debug))
     for code in (EXIT_INTERNAL, EXIT_REFUSED, EXIT_NOT_REALIZED):
         if code in codes:
             return code
@@ -124,6 +144,7 @@ def build_parser() -> argparse.ArgumentParser:
     solve.add_argument("--no-realize", action="store_true",
                        help="skip the collision-free realization")
     solve.add_argument("--force", action="store_true", help="overwrite existing result files")
+    batch.add_arguments(solve)
     solve.set_defaults(func=cmd_solve)
     validate = sub.add_parser("validate", help="statistical validations of the paper")
     validate_sub = validate.add_subparsers(dest="what", required=True)
@@ -136,7 +157,7 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-_COMMAND_MODULES: list = [studio, export_cmd]
+_COMMAND_MODULES: list = [studio, export_cmd, animate_cmd]
 _VALIDATE_MODULES: list = [validate_realization, validate_evolution]
 
 

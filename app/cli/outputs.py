@@ -176,9 +176,7 @@ def staged_dir(out: Path) -> Iterator[Path]:
             os.replace(f, out / f.name)
 
 
-def add_seed_and_workers(p: argparse.ArgumentParser, seed_help: str) -> None:
-    """The ``--seed`` and ``--workers`` options shared by the ``validate`` commands."""
+def add_seed(p: argparse.ArgumentParser, seed_help: str) -> None:
+    """The ``--seed`` option shared by the ``validate`` commands."""
     p.add_argument("--seed", type=int_range(0, 2**32 - 1), default=0,
                    help=f"{seed_help} (0..2^32-1)")
-    p.add_argument("--workers", type=int_range(1, 256),
-                   default=min(2, os.cpu_count() or 1), help="worker processes (1..256)")

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from app.cli import outputs
+from app.cli import batch, outputs
 from paraloop_core.validation import fig16
 
 
@@ -33,13 +33,16 @@ NAMES = ("fig16.png", "fig16.csv", "fig16_summary.json")
 def cmd_evolution(args: argparse.Namespace) -> int:
     out = Path(args.out)
     outputs.check_dir_target(out, NAMES, args.force)  # before the (long) run
-    res = fig16.run(args.starts, args.targets, args.seed, args.workers, args.max_iterations,
-                    None if args.quiet else _progress_bar(time.perf_counter()))
+    with batch.Runner.from_args(args) as runner:
+        res = fig16.run(args.starts, args.targets, args.seed, runner.workers,
+                        args.max_iterations,
+                        None if args.quiet else _progress_bar(time.perf_counter()),
+                        runner.values)
     final = res.costs[:, -1]
     status = {s: res.status.count(s) for s in sorted(set(res.status))}
     summary = {
         "starts": args.starts, "targets": args.targets, "seed": args.seed,
-        "workers": args.workers, "seconds": round(res.seconds, 2),
+        "workers": runner.workers, "seconds": round(res.seconds, 2),
         "iterations_max": int(res.costs.shape[1] - 1),
         "final_cost": {"best": float(final.min()), "median": float(np.median(final)),
                        "mean": float(final.mean()), "worst": float(final.max())},
@@ -52,7 +55,7 @@ def cmd_evolution(args: argparse.Namespace) -> int:
         (tmp / "fig16_summary.json").write_text(json.dumps(summary, indent=1) + "\n",
                                                 encoding="utf-8")
     print(f"{args.starts} starts on {args.targets} targets (seed {args.seed}) in "
-          f"{res.seconds:.1f} s with {args.workers} worker(s)")
+          f"{res.seconds:.1f} s with {runner.workers} worker(s)")
     print(f"final cost: best {final.min():.3g}, median {np.median(final):.3g}, "
           f"worst {final.max():.3g}; {summary['exact_fits']} starts <= 1e-8; status {status}")
     print(f"wrote {out / 'fig16.png'}, {out / 'fig16.csv'}, {out / 'fig16_summary.json'}")
@@ -67,7 +70,8 @@ def register(validate_subparsers) -> None:
                    help="number of random starts (1..100000)")
     p.add_argument("--targets", type=outputs.int_range(5, 1000), default=10,
                    help="number of target poses (5..1000)")
-    outputs.add_seed_and_workers(p, "seed of the target motion and starts")
+    outputs.add_seed(p, "seed of the target motion and starts")
+    batch.add_arguments(p, batch.VALIDATE_WORKERS)
     p.add_argument("--max-iterations", type=outputs.int_range(1, 10_000), default=100,
                    help="iteration cap per start (1..10000)")
     p.add_argument("--out", default="out/fig16", help="output directory (PNG, CSV, JSON)")

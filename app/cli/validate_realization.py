@@ -4,24 +4,13 @@ from __future__ import annotations
 
 import argparse
 import csv
+import functools
 import io
-import sys
 import time
 from pathlib import Path
 
-from app.cli import outputs
+from app.cli import batch, outputs
 from paraloop_core.validation import table1
-
-
-def _progress(done: int, total: int, start: float) -> None:
-    width = 30
-    fill = width * done // total
-    rate = done / max(time.perf_counter() - start, 1e-9)
-    sys.stderr.write(f"\r[{'#' * fill}{'.' * (width - fill)}] {done}/{total} loops "
-                     f"{rate:.1f}/s")
-    if done == total:
-        sys.stderr.write("\n")
-    sys.stderr.flush()
 
 
 def format_table(summary: dict[str, dict]) -> str:
@@ -46,8 +35,10 @@ def cmd_realization(args: argparse.Namespace) -> int:
     if csv_path is not None:  # checked before the (long) run
         outputs.check_file_target(csv_path, args.force)
     start = time.perf_counter()
-    rows = table1.run(args.motions, args.seed, args.workers,
-                      None if args.quiet else lambda d, n: _progress(d, n, start))
+    with batch.Runner.from_args(args) as runner:
+        bar = None if args.quiet else batch.Bar(len(table1.KINDS) * args.motions, "loops")
+        rows = table1.run(args.motions, args.seed,
+                          functools.partial(runner.values, progress=bar))
     elapsed = time.perf_counter() - start
     if csv_path is not None:
         fields = ["motion", "kind", "ok", "reason", *table1.COLUMNS[:5], "offset_rank",
@@ -59,7 +50,7 @@ def cmd_realization(args: argparse.Namespace) -> int:
         outputs.write_files(csv_path.parent, [(csv_path.name, text.getvalue().encode())])
     print(format_table(table1.summarize(rows)))
     print(f"{len(rows)} loops from {args.motions} motions (seed {args.seed}) in {elapsed:.1f} s "
-          f"with {args.workers} worker(s)")
+          f"with {runner.workers} worker(s)")
     return outputs.EXIT_OK if all(r["ok"] for r in rows) else outputs.EXIT_NOT_REALIZED
 
 
@@ -69,7 +60,8 @@ def register(validate_subparsers) -> None:
         "realization", help="Table 1: realize AS and DB loops of random cubic motions")
     p.add_argument("--motions", type=outputs.int_range(1, 1_000_000), default=1000,
                    help="number of random cubics (1..1000000)")
-    outputs.add_seed_and_workers(p, "random seed")
+    outputs.add_seed(p, "random seed")
+    batch.add_arguments(p, batch.VALIDATE_WORKERS)
     p.add_argument("--csv", help="write one row per loop to this CSV file")
     p.add_argument("--force", action="store_true", help="overwrite an existing --csv file")
     p.add_argument("--quiet", action="store_true", help="no progress bar")

@@ -127,6 +127,10 @@ class Panels:
             self.export = gui.add_button("Export result", icon=viser.Icon.DOWNLOAD,
                                          hint="download the solution: motion, six "
                                               "factorizations, nine loops, realization (JSON)")
+            self.animation = gui.add_button("Animation (glTF)", icon=viser.Icon.MOVIE,
+                                            hint="download the realized loop over one cycle "
+                                                 "(joint 0 at constant speed, 10 s) as an "
+                                                 "animated .glb for Blender or a web viewer")
         with gui.add_folder("Targets"):
             self.locks_folder = gui.add_folder("Locks")
             self.locks: list[viser.GuiCheckboxHandle] = []
@@ -212,6 +216,7 @@ class Panels:
         self.redo.on_click(handler(lambda _: self._history(st.redo)))
         self.save.on_click(handler(s.download_design))
         self.export.on_click(handler(s.download_export))
+        self.animation.on_click(handler(s.download_animation))
         self.load.on_upload(handler(s.upload_design))
         self.name.on_update(handler(lambda _: self._edit("name", name=self.name.value)))
         self.add_pose.on_click(handler(lambda _: self._add_pose()))

@@ -61,8 +61,9 @@ Progress = Callable[[float, str], None]
 #: Exact (manifold3d) gap checks one pair may spend refining between samples; beyond it the
 #: pair's continuous bound stays as far as proven (``ok`` false if that is not > 0).
 MAX_EXACT_CHECKS = 3000
-_COLORS = np.array([[150, 150, 150], [220, 60, 60], [60, 160, 70], [240, 140, 30],
-                    [60, 110, 220], [170, 80, 200]], np.uint8)
+#: RGB of links 0..5 in the exported assembly (and the animated glTF).
+LINK_COLORS = np.array([[150, 150, 150], [220, 60, 60], [60, 160, 70], [240, 140, 30],
+                        [60, 110, 220], [170, 80, 200]], np.uint8)
 
 
 def part_trimesh(part: Part) -> trimesh.Trimesh:
@@ -286,14 +287,14 @@ def export_assembly(asm: Assembly, *, verify: bool = True, samples: int = 720,
     glb = trimesh.Scene()
     for p in asm.parts:
         tm = meshes[p.name].copy()
-        tm.visual.face_colors = np.append(_COLORS[p.link], 255)
+        tm.visual.face_colors = np.append(LINK_COLORS[p.link], 255)
         glb.add_geometry(tm, node_name=p.name, geom_name=p.name)
     files.append(("assembly.glb", glb.export(file_type="glb")))
     if rhino:
         from paraloop_core.fabrication import rhino as rhino_mod  # optional dependency
 
         files.append(("paraloop.3dm", rhino_mod.assembly_3dm(
-            meshes, {p.name: _COLORS[p.link] for p in asm.parts})))
+            meshes, {p.name: LINK_COLORS[p.link] for p in asm.parts})))
     report = {"scale_mm_per_unit": asm.scale, "spec": asdict(asm.spec),
               "parts": [{"name": name, "obb_extents_mm":  # for bed fit and the part list
                          np.sort(tm.bounding_box_oriented.primitive.extents).tolist()}

@@ -13,8 +13,11 @@ The per-start stage machine lives in :mod:`.evolution_stages`.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor, as_completed
+import contextlib
+import functools
+import multiprocessing
+from collections.abc import Callable, Iterable
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -193,9 +196,12 @@ def _straighten(prob: Problem, fix: Problem, settings: EvolutionSettings,
 def evolve_starts(
     targets: np.ndarray, inertia: metric.Inertia, settings: EvolutionSettings,
     progress: Callable[[float, str], None] | None = None, initial: np.ndarray | None = None,
+    mapper: Callable[[Callable, Iterable], Iterable] | None = None,
 ) -> tuple[np.ndarray, list[StartResult]]:
     """Run all starts (start 0 from the factors ``initial`` ``(3, 8)`` when given); returns
-    ``(world targets (m, 8) unit, results by start index)``."""
+    ``(world targets (m, 8) unit, results by start index)``. ``mapper(run, chunks)`` runs the
+    chunks of start indices and yields their results in order (default: in this process, or a
+    pool of ``settings.workers`` processes; the command line passes its own)."""
     world = check_targets(targets, inertia)
     rel = dq.normalize(dq.mul(dq.conj(world[0]), world))
     rel[0] = dq.IDENTITY
@@ -214,7 +220,13 @@ def evolve_starts(
                            "bad-parameters")
         first = four_pose_guess(prob, world, idx, settings.ordered)
     n, workers = settings.starts, settings.workers
-    size = max(1, min(10, n // (8 * workers)))  # small chunks: smooth progress, fair load
+    if multiprocessing.current_process().daemon:
+        # a worker of a pool or of a Dask cluster may not start processes: run the starts here
+        # (results do not depend on workers)
+        workers = 1
+    # one start per call in one process (progress per start); else small chunks: smooth
+    # progress, fair load
+    size = 1 if workers == 1 else max(1, min(10, n // (8 * workers)))
     chunks = [list(range(k, min(k + size, n))) for k in range(0, n, size)]
     results: list[StartResult] = []
 
@@ -224,14 +236,13 @@ def evolve_starts(
             best = min((r.cost_history[-1] for r in results if r.cost_history), default=np.nan)
             progress(len(results) / n, f"{len(results)}/{n} starts, best cost {best:.3g}")
 
-    if workers == 1:
-        for i in range(n):
-            report(_run_chunk(prob, fix, settings, [i], first))
-    else:
-        with ProcessPoolExecutor(max_workers=workers) as pool:
-            futures = [pool.submit(_run_chunk, prob, fix, settings, ch, first) for ch in chunks]
-            for fut in as_completed(futures):
-                report(fut.result())
+    with contextlib.ExitStack() as stack:
+        if mapper is None:
+            mapper = map if workers == 1 else stack.enter_context(
+                ProcessPoolExecutor(max_workers=workers)).map
+        for done in mapper(functools.partial(_run_chunk, prob, fix, settings, first=first),
+                           chunks):
+            report(done)
     return world, sorted(results, key=lambda r: r.index)
 
 

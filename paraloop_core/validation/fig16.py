@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import csv
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -68,9 +68,11 @@ def sample_targets(c: np.ndarray, count: int, inertia: metric.Inertia) -> np.nda
 
 def run(starts: int = 500, targets: int = 10, seed: int = 0, workers: int = 1,
         max_iterations: int = 100,
-        progress: Callable[[float, str], None] | None = None) -> Fig16Run:
-    """Run the Fig. 16 experiment (all starts); see the module docstring. Arguments must be
-    true integers (``targets`` >= 5, ``seed`` >= 0, the others >= 1): ParaloopError."""
+        progress: Callable[[float, str], None] | None = None,
+        mapper: Callable[[Callable, Iterable], Iterable] | None = None) -> Fig16Run:
+    """Run the Fig. 16 experiment (all starts); see the module docstring. ``workers`` and
+    ``mapper``: as in :func:`evolution.evolve_starts`. Arguments must be true integers
+    (``targets`` >= 5, ``seed`` >= 0, the others >= 1): ParaloopError."""
     from paraloop_core.errors import ParaloopError
 
     for name, value, lo in (("starts", starts, 1), ("targets", targets, 5), ("seed", seed, 0),
@@ -84,7 +86,7 @@ def run(starts: int = 500, targets: int = 10, seed: int = 0, workers: int = 1,
     settings = evolution.EvolutionSettings(starts=starts, seed=seed, workers=workers,
                                            max_iterations=max_iterations)
     t0 = time.perf_counter()
-    _, results = evolution.evolve_starts(poses, inertia, settings, progress)
+    _, results = evolution.evolve_starts(poses, inertia, settings, progress, mapper=mapper)
     seconds = time.perf_counter() - t0
     n = max(len(r.cost_history) for r in results)
     costs = np.array([np.pad(r.cost_history, (0, n - len(r.cost_history)), mode="edge")

@@ -11,7 +11,6 @@ Each loop is realized with ``p = 10``, ``d = l / 100``, ``rho = d / 4`` (l: init
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable
-from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
@@ -76,36 +75,21 @@ def realize_row(job: tuple[int, int, np.ndarray]) -> dict:
 def run(
     n_motions: int,
     seed: int,
-    workers: int = 1,
-    progress: Callable[[int, int], None] | None = None,
+    mapper: Callable[[Callable, Iterable], Iterable] = map,
 ) -> list[dict]:
-    """Realize the AS and DB loop of ``n_motions`` random cubics; rows in job order. Arguments
-    must be true integers (``n_motions``, ``workers`` >= 1, ``seed`` >= 0): ParaloopError."""
+    """Realize the AS and DB loop of ``n_motions`` random cubics; rows in job order.
+    ``mapper(realize_row, jobs)`` runs the jobs and yields their rows in order (the command line
+    passes one that spreads them over processes or a cluster). Arguments must be true integers
+    (``n_motions`` >= 1, ``seed`` >= 0): ParaloopError."""
     from paraloop_core.errors import ParaloopError
 
-    for name, value, lo in (("n_motions", n_motions, 1), ("seed", seed, 0),
-                            ("workers", workers, 1)):
+    for name, value, lo in (("n_motions", n_motions, 1), ("seed", seed, 0)):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < lo:
             raise ParaloopError(f"{name} must be an integer >= {lo}, got {value!r}",
                                 "bad-parameters")
     lp = random_loops(seed, n_motions)
-    jobs = [(m, k, lp[m, k]) for m in range(n_motions) for k in range(2)]
-    rows: list[dict] = []
-    results: Iterable[dict]
-    if workers > 1:
-        pool = ProcessPoolExecutor(max_workers=workers)
-        results = pool.map(realize_row, jobs, chunksize=4)
-    else:
-        pool, results = None, map(realize_row, jobs)
-    try:
-        for row in results:
-            rows.append(row)
-            if progress is not None:
-                progress(len(rows), len(jobs))
-    finally:
-        if pool is not None:
-            pool.shutdown(cancel_futures=True)
-    return rows
+    jobs = [(m, k, lp[m, k]) for m in range(n_motions) for k in range(len(KINDS))]
+    return list(mapper(realize_row, jobs))
 
 
 def summarize(rows: list[dict]) -> dict[str, dict]:

@@ -1,0 +1,75 @@
+"""``paraloop animate DESIGN.json --out loop.glb``: the realized loop as an animated glTF.
+
+Solves the design (with its realization) and writes one binary glTF 2.0 file: the six links as
+capsules, each a node with translation and rotation keyframes over one full cycle, joint 0
+turning at constant speed (:mod:`paraloop_core.fabrication.animate`). ``--out`` is checked
+before the solve: a ``.glb`` file name in a writable folder, not existing unless ``--force``;
+the file is written atomically (temporary file + rename). Exit status 0 when written, 2 on
+refused input (nothing written), 3 when no collision-free realization was found, 1 on an
+internal error.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from app.cli import outputs
+from app.cli.outputs import EXIT_NOT_REALIZED, EXIT_OK, EXIT_REFUSED
+from paraloop_core import design as design_mod
+from paraloop_core import pipeline
+from paraloop_core.errors import ParaloopError, RealizationError
+from paraloop_core.fabrication import animate
+
+
+def check_out(out: Path, design: Path, force: bool) -> None:
+    """Refuse an unusable ``--out`` before any work (OutputError)."""
+    if out.suffix.lower() != ".glb":
+        raise outputs.OutputError(f"{out}: give a .glb file name (binary glTF)")
+    outputs.check_file_target(out, force)
+    outputs.check_not_inputs([out], [design])
+
+
+def cmd_animate(args: argparse.Namespace) -> int:
+    path = Path(args.design)
+    out = Path(args.out)
+    check_out(out, path, args.force)
+    try:
+        design = design_mod.load_design(path)
+        if not design.realization.enabled:
+            raise ParaloopError("the design has no realization (enable it in the design file)",
+                                "bad-parameters")
+        sol = pipeline.solve(design)
+        real = sol.realization
+        if real is None:
+            reason = (sol.realization_report or {}).get("reason", "no reason given")
+            print(f"error: {path}: no collision-free realization found "
+                  f"({outputs.one_line(reason)})", file=sys.stderr)
+            return EXIT_NOT_REALIZED
+        data = animate.animated_glb(real.joint_factors, real.points, real.radius,
+                                    frames=args.frames, seconds=args.seconds)
+    except RealizationError as exc:
+        print(f"error: {path}: {outputs.one_line(exc)}", file=sys.stderr)
+        return EXIT_REFUSED if exc.reason == "bad-parameters" else EXIT_NOT_REALIZED
+    except ValueError as exc:  # ParaloopError and any other bad-input ValueError
+        print(f"error: {path}: {outputs.one_line(exc)}", file=sys.stderr)
+        return EXIT_REFUSED
+    outputs.write_files(out.parent, [(out.name, data)])
+    print(f"{path} -> {out}: {args.frames} frames over {args.seconds:g} s, "
+          f"{len(data) / 1e6:.2f} MB")
+    return EXIT_OK
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``animate`` sub-command."""
+    p = subparsers.add_parser("animate", help="write the realized loop as an animated glTF")
+    p.add_argument("design", help="design JSON file")
+    p.add_argument("--out", required=True, help="output .glb file")
+    p.add_argument("--frames", type=outputs.int_range(2, 100_000), default=240,
+                   help="keyframes over one cycle, the last one repeating the first "
+                        "(2..100000; default 240)")
+    p.add_argument("--seconds", type=outputs.float_range(0.0, 86_400.0, lo_open=True),
+                   default=10.0, help="duration of one cycle in seconds (default 10)")
+    p.add_argument("--force", action="store_true", help="overwrite an existing --out file")
+    p.set_defaults(func=cmd_animate)

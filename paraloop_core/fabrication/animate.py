@@ -1,0 +1,227 @@
+"""Animated glTF 2.0 (binary ``.glb``) of a realized loop over one full cycle.
+
+**Scene.** A root node ``paraloop`` with the six link nodes ``link_0 .. link_5`` as children.
+Link i's mesh is its bar ``S_iE_i`` and its pin ``E_iS_{i+1}`` (edges 2i and 2i+1 of the
+realization's ``points``) as capsules of the bar radius, in the home configuration (t = inf,
+base frame), one colour per link (those of ``assembly.glb``).
+
+**Animation** ``cycle``: per link node a TRANSLATION and a ROTATION channel, LINEAR, sharing
+one input of N times ``seconds k / (N - 1)``. Frame k is the link poses of
+:func:`loops.link_poses` at the parameter t_k where joint 0 (the base link's first joint) has
+turned by ``-2 pi k / (N - 1)`` about its factor's ``+direction`` (the sense of
+:func:`loops.joint_angles` as t runs from +inf down to -inf): joint 0 turns at constant speed
+and the last frame is the first (home) after one full turn. Rotations are glTF ``xyzw``
+quaternions, consecutive ones in the same hemisphere.
+
+**Units and axes.** Lengths are design units (one glTF "metre" is one design unit; stated in
+``asset.extras``). Designs are Z-up, glTF is Y-up: the root node rotates by -90 deg about X
+(design +Z -> glTF +Y, design +Y -> glTF -Z), so the loop stands upright in any viewer.
+Vertices and keyframes are float32, so they are stored relative to the loop's centre c (the
+mean of the points; the root node translates by c, in double-precision JSON): link meshes hold
+home coordinates minus c and link node i maps such a point v to ``R_i (v + c) + t_i - c`` for
+the pose ``x -> R_i x + t_i`` of link i. A design far from the origin keeps float32 precision
+relative to the loop's size.
+"""
+
+from __future__ import annotations
+
+import json
+import struct
+
+import numpy as np
+import trimesh
+
+from paraloop_core.algebra import dq, poly
+from paraloop_core.fabrication.export import LINK_COLORS
+from paraloop_core.linkage import loops
+
+#: Root rotation (xyzw): -90 deg about X takes design Z-up to glTF Y-up.
+Z_UP_TO_Y_UP = (-float(np.sqrt(0.5)), 0.0, 0.0, float(np.sqrt(0.5)))
+#: Capsule tessellation (latitude, longitude sections): smooth at viewer scale, ~0.2 MB a file.
+CAPSULE_COUNT = (12, 24)
+_FLOAT, _UINT = 5126, 5125  # glTF componentType
+_ARRAY_BUFFER, _ELEMENT_ARRAY_BUFFER = 34962, 34963  # glTF bufferView targets
+
+
+def _finite_array(value: np.ndarray, shape: tuple[int, ...], name: str) -> np.ndarray:
+    arr = np.asarray(value, dtype=np.float64)
+    if arr.shape != shape:
+        raise ValueError(f"{name} must have shape {shape}, got {arr.shape}")
+    if not np.isfinite(arr).all():
+        raise ValueError(f"{name} has non-finite values")
+    return arr
+
+
+def _positive(value: float, name: str) -> float:
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number, got {value!r}") from None
+    if not (np.isfinite(x) and x > 0):
+        raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
+    return x
+
+
+def _check_frames(frames: int) -> int:
+    if isinstance(frames, bool) or not isinstance(frames, int | np.integer) or frames < 2:
+        raise ValueError(f"frames must be an integer >= 2, got {frames!r}")
+    return int(frames)
+
+
+def keyframe_parameters(joint_factors: np.ndarray, frames: int) -> np.ndarray:
+    """Parameters t ``(frames,)`` at which joint 0's angle is ``-2 pi k / (frames - 1)``;
+    ``t = inf`` (home) at both ends. ``joint_factors`` ``(6, 8)``."""
+    jf = _finite_array(joint_factors, (6, 8), "joint_factors")
+    n = _check_frames(frames)
+    root = loops.norm_roots(jf)[0]  # h_0 + i r of joint factor 0 (r = |vec h|)
+    if not root.imag > 0:
+        raise ValueError("joint factor 0 is not a rotation (zero vector part)")
+    u = np.arange(n) / (n - 1)
+    # Joint 0's angle is 2 atan2(-r, t - h_0) (loops.joint_angles), which is -2 pi u exactly
+    # where t - h_0 = r cot(pi u) = r param_to_t(1 - u): inf at u = 0 and u = 1.
+    return root.real + root.imag * poly.param_to_t(1.0 - u)
+
+
+def _capsule(p0: np.ndarray, p1: np.ndarray, radius: float) -> trimesh.Trimesh:
+    """A capsule about the segment ``p0 p1`` (a sphere when the segment is a point)."""
+    axis = p1 - p0
+    length = float(np.linalg.norm(axis))
+    mesh = trimesh.creation.capsule(height=length, radius=radius, count=CAPSULE_COUNT)
+    if length > 0:  # trimesh's capsule lies along +z, centred at the origin
+        mesh.apply_transform(trimesh.geometry.align_vectors([0.0, 0.0, 1.0], axis))
+    mesh.apply_translation(0.5 * (p0 + p1))
+    return mesh
+
+
+def link_meshes(points: np.ndarray, radius: float) -> list[trimesh.Trimesh]:
+    """Six meshes, link i = capsules of ``radius`` about its bar (points 2i, 2i+1) and its pin
+    (points 2i+1, 2i+2 mod 12), in the coordinates of ``points`` ``(12, 3)``."""
+    pts = _finite_array(points, (12, 3), "points")
+    rho = _positive(radius, "radius")
+    return [trimesh.util.concatenate([_capsule(pts[e], pts[(e + 1) % 12], rho)
+                                      for e in (2 * i, 2 * i + 1)]) for i in range(6)]
+
+
+def node_keyframes(joint_factors: np.ndarray, t: np.ndarray, centre: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """Link node keyframes at parameters ``t`` ``(T,)`` for meshes stored relative to
+    ``centre`` ``(3,)``: translations ``(T, 6, 3)`` and rotations ``(T, 6, 4)`` (glTF xyzw,
+    neighbours in one hemisphere), so that ``R (x - c) + tr + c`` is the link pose of
+    :func:`loops.link_poses` applied to a home point ``x``."""
+    jf = _finite_array(joint_factors, (6, 8), "joint_factors")
+    c = _finite_array(centre, (3,), "centre")
+    poses = dq.normalize(loops.link_poses(jf, t))  # (T, 6, 8) unit, p0 >= 0
+    translation = dq.transform_points(poses, c) - c
+    wxyz = poses[..., :4]
+    # normalize() picks p0 >= 0, so a link turning past pi flips sign; interpolating between q
+    # and -q would spin the long way round: flip every key into its predecessor's hemisphere.
+    flip = np.einsum("kij,kij->ki", wxyz[1:], wxyz[:-1]) < 0
+    wxyz[1:] *= np.cumprod(np.where(flip, -1.0, 1.0), axis=0)[..., None]
+    return translation, wxyz[..., [1, 2, 3, 0]]
+
+
+class _Buffer:
+    """The BIN chunk being built: one bufferView (4-byte aligned) and accessor per array."""
+
+    def __init__(self) -> None:
+        self.data = bytearray()
+        self.views: list[dict] = []
+        self.accessors: list[dict] = []
+
+    def add(self, array: np.ndarray, kind: str, target: int | None = None,
+            bounds: bool = False) -> int:
+        """Append ``array`` (rows = elements of glTF type ``kind``); returns its accessor."""
+        is_int = np.issubdtype(np.asarray(array).dtype, np.integer)
+        arr = np.ascontiguousarray(array, dtype="<u4" if is_int else "<f4")
+        self.data += b"\0" * (-len(self.data) % 4)
+        view = {"buffer": 0, "byteOffset": len(self.data), "byteLength": arr.nbytes}
+        if target is not None:
+            view["target"] = target
+        self.data += arr.tobytes()
+        self.views.append(view)
+        acc = {"bufferView": len(self.views) - 1, "componentType": _UINT if is_int else _FLOAT,
+               "count": len(arr), "type": kind}
+        if bounds:  # required for POSITION and animation inputs; exact float32 values
+            acc["min"] = np.atleast_1d(arr.min(axis=0)).tolist()
+            acc["max"] = np.atleast_1d(arr.max(axis=0)).tolist()
+        self.accessors.append(acc)
+        return len(self.accessors) - 1
+
+
+def _linear_rgb(srgb: np.ndarray) -> list[float]:
+    """glTF base colours are linear; ``srgb`` 0..255 as in ``assembly.glb``."""
+    c = np.asarray(srgb, dtype=np.float64) / 255.0
+    lin = np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+    return [*lin.tolist(), 1.0]
+
+
+def _glb(doc: dict, data: bytes) -> bytes:
+    """GLB container: 12-byte header, JSON chunk (space padded), BIN chunk (zero padded)."""
+    text = json.dumps(doc, separators=(",", ":"), allow_nan=False).encode()
+    text += b" " * (-len(text) % 4)
+    data += b"\0" * (-len(data) % 4)
+    total = 12 + 8 + len(text) + 8 + len(data)
+    return (struct.pack("<4sII", b"glTF", 2, total) + struct.pack("<I4s", len(text), b"JSON")
+            + text + struct.pack("<I4s", len(data), b"BIN\0") + data)
+
+
+def animated_glb(joint_factors: np.ndarray, points: np.ndarray, radius: float, *,
+                 frames: int = 240, seconds: float = 10.0) -> bytes:
+    """Binary glTF 2.0 of the loop moving through one full cycle (module docstring).
+
+    ``joint_factors`` ``(6, 8)`` (:mod:`paraloop_core.algebra.dq` convention), ``points``
+    ``(12, 3)`` ``S_0, E_0, ..., S_5, E_5`` at home and the bar ``radius`` of a
+    :class:`~paraloop_core.realization.realize.Realization`, design units; ``frames`` >= 2
+    keyframes over ``seconds`` > 0. Raises ValueError on bad input."""
+    jf = _finite_array(joint_factors, (6, 8), "joint_factors")
+    pts = _finite_array(points, (12, 3), "points")
+    rho = _positive(radius, "radius")
+    n = _check_frames(frames)
+    duration = _positive(seconds, "seconds")
+    times = np.linspace(0.0, duration, n).astype(np.float32)
+    if not (np.diff(times) > 0).all():  # glTF requires strictly increasing inputs
+        raise ValueError(f"{n} frames over {duration:g} s are too close for float32 times")
+    centre = pts.mean(axis=0)
+    translation, xyzw = node_keyframes(jf, keyframe_parameters(jf, n), centre)
+
+    buf = _Buffer()
+    meshes, materials = [], []
+    for i, mesh in enumerate(link_meshes(pts - centre, rho)):
+        prim = {"attributes": {
+            "POSITION": buf.add(mesh.vertices, "VEC3", _ARRAY_BUFFER, bounds=True),
+            "NORMAL": buf.add(mesh.vertex_normals, "VEC3", _ARRAY_BUFFER)},
+            "indices": buf.add(mesh.faces.reshape(-1), "SCALAR", _ELEMENT_ARRAY_BUFFER),
+            "material": i, "mode": 4}
+        meshes.append({"name": f"link_{i}", "primitives": [prim]})
+        materials.append({"name": f"link_{i}", "pbrMetallicRoughness": {
+            "baseColorFactor": _linear_rgb(LINK_COLORS[i]), "metallicFactor": 0.0,
+            "roughnessFactor": 0.6}})
+    time_acc = buf.add(times, "SCALAR", bounds=True)
+    samplers, channels = [], []
+    for i in range(6):
+        for path, values, kind in (("translation", translation, "VEC3"),
+                                   ("rotation", xyzw, "VEC4")):
+            samplers.append({"input": time_acc, "output": buf.add(values[:, i], kind),
+                             "interpolation": "LINEAR"})
+            channels.append({"sampler": len(samplers) - 1,
+                             "target": {"node": 1 + i, "path": path}})
+
+    root = {"name": "paraloop", "children": list(range(1, 7)), "rotation": list(Z_UP_TO_Y_UP),
+            # the root's translation acts after its rotation: c in glTF axes
+            "translation": [centre[0], centre[2], -centre[1]]}
+    doc = {
+        "asset": {"version": "2.0", "generator": "paraloop animate", "extras": {
+            "units": "design units (1 glTF unit = 1 design unit)",
+            "axes": "design Z-up; the root node rotates it to glTF Y-up",
+            "centre": centre.tolist(), "frames": n, "seconds": duration}},
+        "scene": 0,
+        "scenes": [{"name": "paraloop", "nodes": [0]}],
+        "nodes": [root] + [{"name": f"link_{i}", "mesh": i} for i in range(6)],
+        "meshes": meshes,
+        "materials": materials,
+        "animations": [{"name": "cycle", "samplers": samplers, "channels": channels}],
+        "buffers": [{"byteLength": len(buf.data)}],
+        "bufferViews": buf.views,
+        "accessors": buf.accessors,
+    }
+    return _glb(doc, bytes(buf.data))
