@@ -12,7 +12,6 @@ import numpy as np
 import pytest
 import trimesh
 
-from app.cli import animate as animate_cli
 from app.cli.main import main
 from paraloop_core import design as design_mod
 from paraloop_core import pipeline
@@ -242,7 +241,7 @@ def test_cli_refuses_unusable_output_before_solving(tmp_path, capsys, monkeypatc
     def no_solve(*args, **kwargs):
         raise AssertionError("solved before checking the output")
 
-    monkeypatch.setattr(animate_cli.pipeline, "solve", no_solve)
+    monkeypatch.setattr(pipeline, "solve", no_solve)
     assert main(["animate", str(TV8), "--out", str(tmp_path / name)]) == 2
     assert len(capsys.readouterr().err.strip().splitlines()) == 1
     assert not (tmp_path / "loop.gltf").exists()
@@ -256,7 +255,7 @@ def test_cli_not_realized_exit_3(tmp_path, capsys, monkeypatch):
                                    realization_report={"status": "not_found",
                                                        "reason": "no luck\nat all"})
 
-    monkeypatch.setattr(animate_cli.pipeline, "solve", unrealized)
+    monkeypatch.setattr(pipeline, "solve", unrealized)
     out = tmp_path / "loop.glb"
     assert main(["animate", str(TV8), "--out", str(out)]) == 3
     err = capsys.readouterr().err.strip().splitlines()

@@ -12,14 +12,11 @@ internal error.
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 from app.cli import outputs
-from app.cli.outputs import EXIT_NOT_REALIZED, EXIT_OK, EXIT_REFUSED
-from paraloop_core import design as design_mod
-from paraloop_core import pipeline
-from paraloop_core.errors import ParaloopError, RealizationError
+from app.cli.export import solve_realized
+from app.cli.outputs import EXIT_OK
 from paraloop_core.fabrication import animate
 
 
@@ -35,26 +32,11 @@ def cmd_animate(args: argparse.Namespace) -> int:
     path = Path(args.design)
     out = Path(args.out)
     check_out(out, path, args.force)
-    try:
-        design = design_mod.load_design(path)
-        if not design.realization.enabled:
-            raise ParaloopError("the design has no realization (enable it in the design file)",
-                                "bad-parameters")
-        sol = pipeline.solve(design)
-        real = sol.realization
-        if real is None:
-            reason = (sol.realization_report or {}).get("reason", "no reason given")
-            print(f"error: {path}: no collision-free realization found "
-                  f"({outputs.one_line(reason)})", file=sys.stderr)
-            return EXIT_NOT_REALIZED
-        data = animate.animated_glb(real.joint_factors, real.points, real.radius,
-                                    frames=args.frames, seconds=args.seconds)
-    except RealizationError as exc:
-        print(f"error: {path}: {outputs.one_line(exc)}", file=sys.stderr)
-        return EXIT_REFUSED if exc.reason == "bad-parameters" else EXIT_NOT_REALIZED
-    except ValueError as exc:  # ParaloopError and any other bad-input ValueError
-        print(f"error: {path}: {outputs.one_line(exc)}", file=sys.stderr)
-        return EXIT_REFUSED
+    code, data = solve_realized(path, lambda _, sol: animate.animated_glb(
+        sol.realization.joint_factors, sol.realization.points, sol.realization.radius,
+        frames=args.frames, seconds=args.seconds))
+    if data is None:
+        return code
     outputs.write_files(out.parent, [(out.name, data)])
     print(f"{path} -> {out}: {args.frames} frames over {args.seconds:g} s, "
           f"{len(data) / 1e6:.2f} MB")

@@ -15,19 +15,23 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
+from typing import TypeVar
 
 from app.cli import outputs
 from app.cli.outputs import EXIT_NOT_REALIZED, EXIT_OK, EXIT_REFUSED
 from paraloop_core import design as design_mod
 from paraloop_core import pipeline
+from paraloop_core.design import Design
 from paraloop_core.errors import ParaloopError, RealizationError
 from paraloop_core.fabrication import printable, rhino, sizing
 
 #: the fixed names written into DIR (plus the numbered ones of :data:`NUMBERED`)
 FIXED_NAMES = ("paraloop.3mf", "assembly.glb", "report.json", "assembly.md", "paraloop.3dm")
 NUMBERED = ("link_*.stl", "paraloop_plate*.3mf", "assembly_step_*.png")
+T = TypeVar("T")
 
 
 def check_out(out: Path, force: bool) -> None:
@@ -38,6 +42,31 @@ def check_out(out: Path, force: bool) -> None:
             raise outputs.OutputError(f"{old}: already exists (use --force to overwrite)")
 
 
+def solve_realized(path: Path, work: Callable[[Design, pipeline.Solution], T]
+                   ) -> tuple[int, T | None]:
+    """Load and solve the design at ``path`` (its realization enabled) and run ``work(design,
+    solution)`` on the realized one: ``(EXIT_OK, value)``, or the exit code after one error
+    line (not realized: 3; refused input: 2) and None. Shared by ``export`` and ``animate``."""
+    try:
+        design = design_mod.load_design(path)
+        if not design.realization.enabled:
+            raise ParaloopError("the design has no realization (enable it in the design file)",
+                                "bad-parameters")
+        sol = pipeline.solve(design)
+        if sol.realization is None:
+            reason = (sol.realization_report or {}).get("reason", "no reason given")
+            print(f"error: {path}: no collision-free realization found "
+                  f"({outputs.one_line(reason)})", file=sys.stderr)
+            return EXIT_NOT_REALIZED, None
+        return EXIT_OK, work(design, sol)
+    except RealizationError as exc:
+        print(f"error: {path}: {outputs.one_line(exc)}", file=sys.stderr)
+        return (EXIT_REFUSED if exc.reason == "bad-parameters" else EXIT_NOT_REALIZED), None
+    except ValueError as exc:  # ParaloopError and any other bad-input ValueError
+        print(f"error: {path}: {outputs.one_line(exc)}", file=sys.stderr)
+        return EXIT_REFUSED, None
+
+
 def cmd_export(args: argparse.Namespace) -> int:
     path = Path(args.design)
     out = Path(args.out)
@@ -45,31 +74,19 @@ def cmd_export(args: argparse.Namespace) -> int:
     try:
         if args.rhino:
             rhino.require()  # before the solve: say at once what is missing
-        design = design_mod.load_design(path)
-        if not design.realization.enabled:
-            raise ParaloopError("the design has no realization (enable it in the design file)",
-                                "bad-parameters")
-        sol = pipeline.solve(design)
-        real = sol.realization
-        if real is None:
-            reason = (sol.realization_report or {}).get("reason", "no reason given")
-            print(f"error: {path}: no collision-free realization found "
-                  f"({outputs.one_line(reason)})", file=sys.stderr)
-            return EXIT_NOT_REALIZED
         printer = _printer(args)
-        result = printable.export_printable(
-            real, printer=printer, size_mm=args.size_mm, print_in_place=args.print_in_place,
-            ground=not args.no_ground, ground_axis=args.ground_axis, ground_link=args.ground_link,
-            space_radius=args.carve_radius, resolution=args.resolution, samples=args.samples,
-            effector=sol.end_effector, rhino=args.rhino, fixed=dict(design.realization.fixed),
-            alternatives=sol.other_loops(),
-            progress=None if args.quiet else _print_progress)
-    except RealizationError as exc:
-        print(f"error: {path}: {outputs.one_line(exc)}", file=sys.stderr)
-        return EXIT_REFUSED if exc.reason == "bad-parameters" else EXIT_NOT_REALIZED
-    except ValueError as exc:  # ParaloopError and any other bad-input ValueError
+    except ValueError as exc:
         print(f"error: {path}: {outputs.one_line(exc)}", file=sys.stderr)
         return EXIT_REFUSED
+    code, result = solve_realized(path, lambda design, sol: printable.export_printable(
+        sol.realization, printer=printer, size_mm=args.size_mm,
+        print_in_place=args.print_in_place, ground=not args.no_ground,
+        ground_axis=args.ground_axis, ground_link=args.ground_link,
+        space_radius=args.carve_radius, resolution=args.resolution, samples=args.samples,
+        effector=sol.end_effector, rhino=args.rhino, fixed=dict(design.realization.fixed),
+        alternatives=sol.other_loops(), progress=None if args.quiet else _print_progress))
+    if result is None:
+        return code
     outputs.write_files(out, result.files)
     ver, sz = result.report["verification"], result.report["sizing"]
     for warning in result.report["warnings"]:
