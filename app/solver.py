@@ -1,5 +1,5 @@
 """The studio's solves: full updates cached (undo/redo is instant) and warm-started from the
-last realized solution; drag previews without a realization search."""
+last drag preview's pattern and the last realized solution; drag previews uncertified."""
 
 from __future__ import annotations
 
@@ -30,6 +30,9 @@ class Solver:
     def _key(design: Design) -> str:
         data = design_mod.design_to_dict(absolute_mesh(design))  # a mesh path per file
         del data["name"], data["locked"]  # neither changes the solution
+        drive = data.pop("drive")  # nor the drive, but for the smooth-drive criterion's motor
+        if design.motion.criterion == "smooth-drive":
+            data["motor"] = drive["motor"]
         return json.dumps(data, sort_keys=True)
 
     def quick_fit(self, design: Design) -> tuple[pipeline.Solution, str] | None:
@@ -42,8 +45,12 @@ class Solver:
         return self._full(design, dict(fit=self._preview_fit[1]))
 
     def _full(self, design: Design, extra: dict) -> tuple[pipeline.Solution, str]:
+        """A full update: the last preview's pattern and the last realization's are tried
+        first (certified like any answer), then the search."""
+        pattern, self.preview = (None if self.preview is None else self.preview.pattern), None
         try:
-            sol = pipeline.solve(design, other_loops=False, hint=self.realized, **extra)
+            sol = pipeline.solve(design, other_loops=False, hint=self.realized,
+                                 pattern=pattern, **extra)
             report = sol.realization_report or {}
             note = (f"No realization: {report.get('reason')}"
                     if report.get("status") == "not_found" else "")

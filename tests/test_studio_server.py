@@ -144,6 +144,7 @@ def test_status_is_not_ok_without_a_realization(studio, monkeypatch):
 
     monkeypatch.setattr(pipeline, "FIRST_ATTEMPT_WORK", 1)
     monkeypatch.setattr(pipeline, "FALLBACK_WORK", 1)
+    monkeypatch.setattr(pipeline, "PREVIEW_WORK", 1)  # no pattern from a drag preview either
     p = studio.state.design.poses[3]
     gizmo(studio, 3, position=np.asarray(p.position) + 0.013)
     assert studio.solution.realization is None and studio.error is None

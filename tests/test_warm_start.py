@@ -110,3 +110,41 @@ def test_end_effector_drag_preview_moves_the_linkage_and_p():
     warm = pipeline.warm_realization(new, sol)
     assert warm is not None and warm.end_effector is not None
     assert np.allclose(warm.realization.points, preview.points, atol=1e-9)
+
+
+def test_a_far_step_previews_a_searched_pattern_that_the_release_certifies(tv8):
+    """When the last pattern no longer clears, the preview runs a small uncertified search;
+    the release tries that pattern first and certifies it like any answer."""
+    design, sol = tv8
+    rng = np.random.default_rng(5)
+    for _ in range(12):
+        new = pipeline.solve(moved(design, 3, 0.24 * rng.normal(size=3)), realize=False)
+        if pipeline.warm_realization(new, sol) is None:
+            preview = pipeline.warm_preview(new, sol)
+            if preview is not None:
+                break
+    else:
+        pytest.fail("no far step needed a preview search")
+    assert not (np.array_equal(preview.pattern[0], sol.realization.shifts)
+                and np.array_equal(preview.pattern[1], sol.realization.offsets))
+    warm = pipeline.warm_realization(new, None, preview.pattern)
+    assert warm is not None and warm.realization_report["warm_start"]
+    assert np.allclose(warm.realization.points, preview.points, atol=1e-9)
+    assert np.array_equal(warm.realization.shifts, preview.pattern[0])
+    rep = check_result(pipeline.result_to_dict(warm))
+    assert rep["status"] == "checked" and not rep["disagreements"], rep["disagreements"]
+    full = pipeline.solve(new.design, other_loops=False, hint=sol, pattern=preview.pattern)
+    assert np.array_equal(full.realization.points, warm.realization.points)
+
+
+def test_consecutive_bar_bounds_are_computed_on_demand_and_sound(tv8):
+    _, sol = tv8
+    real = sol.realization
+    assert "joint_lower" not in vars(real)  # not computed by the certificate
+    lower = real.joint_lower
+    direct = realize.joint_bounds(real.joint_factors, real.points, real.joint_pairs,
+                                  real.length).lower - real.reading_gap
+    assert np.allclose(lower, direct, rtol=1e-6, atol=1e-9 * real.length)
+    # sound: never above the sampled distance of the two consecutive bars over the cycle
+    rep = check_result(pipeline.result_to_dict(sol))
+    assert rep["status"] == "checked" and not rep["disagreements"], rep["disagreements"]

@@ -11,7 +11,8 @@ Sec. 5.2: cylindrical design spaces from the certificate.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -60,7 +61,9 @@ class Realization:
     ``offsets`` ``(6,)`` in ``{+1, -1, 0}``; ``thin_initial``/``thin`` ``(6, 3)`` the step-1 and
     step-3 polylines; ``pairs`` ``(42, 4)`` rows (edge 1, edge 2, fixed link, moving link);
     ``pair_distance`` ``(42,)`` exact minima over the cycle at ``pair_t`` (inf = home);
-    ``design_space_radii`` ``(6,)``; ``stats`` the search counters.
+    ``design_space_radii`` ``(6,)``; ``stats`` the search counters; ``search_loop`` the loop
+    the search certified and this realization's length unit in its units (:attr:`joint_lower`
+    is bounded there, as the pairs were).
     """
 
     joint_factors: np.ndarray
@@ -80,23 +83,35 @@ class Realization:
     stats: dict
     pair_lower: np.ndarray
     joint_pairs: np.ndarray
-    joint_lower: np.ndarray
     tolerance: float
     #: proven bound of how far the loop's two float64 readings place a point (:mod:`closure`),
     #: already taken off ``pair_lower`` and ``joint_lower``
     reading_gap: float = 0.0
+    search_loop: tuple[np.ndarray, float] | None = field(default=None, repr=False,
+                                                         compare=False)
+
+    @cached_property
+    def joint_lower(self) -> np.ndarray:
+        """Proven lower bounds ``(len(joint_pairs),)`` (design units) of the consecutive bars
+        over the cycle (:func:`joint_bounds`, reading gap off). Computed on first use: the
+        certificate does not need them, and they cost a third of it (a drag's release)."""
+        jf, unit = self.search_loop or (self.joint_factors, 1.0)
+        bounds = joint_bounds(jf, self.points / unit, self.joint_pairs, self.length / unit)
+        return bounds.lower * unit - self.reading_gap
 
     def scaled(self, factor: float, joint_factors: np.ndarray) -> Realization:
         """The same realization in a length unit ``1 / factor`` times this one's, on
         ``joint_factors`` (the loop in that unit): every length times ``factor``."""
         f = float(factor)
+        loop, unit = self.search_loop or (self.joint_factors, 1.0)
         return replace(self, joint_factors=joint_factors, points=self.points * f,
                        radius=self.radius * f, separation=self.separation * f,
                        length=self.length * f, thin_initial=self.thin_initial * f,
                        thin=self.thin * f, pair_distance=self.pair_distance * f,
                        design_space_radii=self.design_space_radii * f,
-                       pair_lower=self.pair_lower * f, joint_lower=self.joint_lower * f,
-                       tolerance=self.tolerance * f, reading_gap=self.reading_gap * f)
+                       pair_lower=self.pair_lower * f, tolerance=self.tolerance * f,
+                       reading_gap=self.reading_gap * f,
+                       search_loop=(loop, unit * f))
 
     @property
     def min_clearance(self) -> float:
@@ -226,11 +241,10 @@ class Search:
 
     def verify(self, step: OffsetSearch, seq: int) -> object | None:
         """Sound bounds (:mod:`verify`) of the pairs of sequence ``seq``, or None when some
-        pair cannot be proven >= 2 rho (the exact check missed a minimum or is unsure); the
-        consecutive bars are bounded for the report (:func:`joint_bounds`)."""
+        pair cannot be proven >= 2 rho (the exact check missed a minimum or is unsure)."""
         points = step.points(seq)
         _, t = step.certificate(seq)
-        return self.bounds(points, OFFSET_PAIRS, verify.JOINT_PAIRS, t)
+        return self.bounds(points, OFFSET_PAIRS, t)
 
     def reading_gap(self, points: np.ndarray) -> float:
         """Proven bound (search units) of how far any two float64 readings of the loop (one
@@ -251,11 +265,10 @@ class Search:
         rescaled = 4.0 * 2.0**-51 * float((dual / direction).sum())
         return rot * radius + shift + rescaled
 
-    def bounds(self, points: np.ndarray, pairs: np.ndarray, joint_pairs: np.ndarray,
-               t: np.ndarray) -> tuple | None:
-        """:meth:`verify` of the 12-vertex polyline ``points`` with its certified ``pairs``,
-        consecutive bars ``joint_pairs`` and exact minima ``t``; counts the cells. The lower
-        bounds returned hold for either reading of the loop (:meth:`reading_gap` off)."""
+    def bounds(self, points: np.ndarray, pairs: np.ndarray, t: np.ndarray) -> tuple | None:
+        """:meth:`verify` of the 12-vertex polyline ``points`` with its certified ``pairs``
+        and exact minima ``t``; counts the cells. The lower bounds returned hold for either
+        reading of the loop (:meth:`reading_gap` off)."""
         gap = self.reading_gap(points)
         need = 2.0 * self.rho + gap
         bounds = verify.polyline_bounds(self.jf, points, pairs, VERIFY_TOL * self.length, t,
@@ -263,31 +276,31 @@ class Search:
         self.cells += int(bounds.cells.sum())
         if bounds.lower.min() < need:
             return None
-        joints = joint_bounds(self.jf, points, joint_pairs, self.length)
-        self.cells += int(joints.cells.sum())
-        return (replace(bounds, lower=bounds.lower - gap),
-                replace(joints, lower=joints.lower - gap), gap)
+        return replace(bounds, lower=bounds.lower - gap), gap
 
     def result(self, step: OffsetSearch, seq: int, tau: np.ndarray, v: np.ndarray,
                stats: dict, proof: object) -> Realization:
         """The realization by offset sequence ``seq`` of ``step`` with the bounds ``proof`` of
         :meth:`verify`; ``stats`` lacks the ``length_ratio``."""
-        pairs, joints, gap = proof
+        pairs, gap = proof
         points = step.points(seq)
         stats["length_ratio"] = float(polyline_length(points)) / self.length
         dist = pairs.upper
         return Realization(self.jf, points, float(self.rho), float(self.d), self.length,
                            float(self.p), tau, OFFSET_WAYS[DIGITS[seq]], self.v0, v,
                            OFFSET_PAIRS, dist, pairs.t, design_space_radii(pairs.lower, self.rho),
-                           stats, pairs.lower, verify.JOINT_PAIRS, joints.lower,
+                           stats, pairs.lower, verify.JOINT_PAIRS,
                            VERIFY_TOL * self.length, gap).scaled(self.unit, self.jf_design)
 
     def run(self, *, p: float, rho: float | None, d: float | None, d_fraction: float,
-            rho_fraction: float, max_k: int, budget: int | None = None):
+            rho_fraction: float, max_k: int, budget: int | None = None, certify: bool = True):
         """Parameters as :func:`realize`; the :meth:`result` of the first success.
 
         ``budget``: work units (:meth:`work`) after which the search stops with reason
-        ``budget`` (checked between candidates): deterministic, unlike a wall-clock limit."""
+        ``budget`` (checked between candidates): deterministic, unlike a wall-clock limit.
+        Without ``certify`` the sound bounds are skipped and the first sequence the exact
+        minima clear is returned as ``(shifts (6,), offsets (6,), vertices (12, 3))`` (design
+        units): a drag preview and the pattern its release certifies, never a certificate."""
         u = self.unit
         v0, length, d, rho = self.setup(p=p, rho=rho, d=d, d_fraction=d_fraction,
                                         rho_fraction=rho_fraction, max_k=max_k)
@@ -321,6 +334,9 @@ class Search:
                     seq, n_seq = step.run(order)
                     tried += n_seq
                     examined += n_seq
+                    if seq is not None and not certify:
+                        return (tau[pos].copy(), OFFSET_WAYS[DIGITS[seq]].copy(),
+                                step.points(seq) * self.unit)
                     proof = None if seq is None else self.verify(step, seq)
                     if seq is None or proof is not None:
                         break

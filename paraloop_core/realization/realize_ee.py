@@ -301,7 +301,7 @@ class EffectorSearch(Search):
         rows = np.arange(len(STEP4_ROWS))
         t = step.t[rows, codes][:len(BASE_PAIRS)]  # base rows first
         points = step.search.points(seq)
-        proof = self.bounds(points, BASE_PAIRS, _EE_JOINT_PAIRS, t)
+        proof = self.bounds(points, BASE_PAIRS, t)
         if proof is None:
             return None
         # P's rows hold for either reading of the loop too (:meth:`reading_gap`)
@@ -313,7 +313,7 @@ class EffectorSearch(Search):
 
     def result(self, step: _Step4, seq: int, tau: np.ndarray, v: np.ndarray, stats: dict,
                proof: object) -> EndEffectorRealization:
-        pairs, joints, gap = proof
+        pairs, gap = proof
         codes = step.codes(np.array([seq]))[0]
         rows = np.arange(len(STEP4_ROWS))
         dist, t = step.value[rows, codes], step.t[rows, codes]
@@ -326,8 +326,7 @@ class EffectorSearch(Search):
         real = Realization(self.jf, points, float(self.rho), float(self.d), self.length,
                            float(self.p), tau, OFFSET_WAYS[DIGITS[seq]], self.v0, v, BASE_PAIRS,
                            dist[base], t[base], design_space_radii(lower, self.rho), stats,
-                           pairs.lower, _EE_JOINT_PAIRS, joints.lower, VERIFY_TOL * self.length,
-                           gap)
+                           pairs.lower, _EE_JOINT_PAIRS, VERIFY_TOL * self.length, gap)
         ee = ~base
         u = self.unit
         return EndEffectorRealization(
