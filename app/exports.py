@@ -144,7 +144,8 @@ def export_zip(solution: pipeline.Solution, fab: FabSettings,
             size_mm=spec.size_mm if fab.carved_parts else (fab.size_mm or None),
             print_in_place=fab.print_in_place, ground=fab.ground,
             effector=solution.end_effector, fixed=dict(solution.design.realization.fixed),
-            alternatives=solution.other_loops(), progress=progress, **opts)
+            alternatives=solution.other_loops(), drive=solution.design.drive,
+            progress=progress, **opts)
         files += result.files
         report = json.loads(dict(result.files)["report.json"])  # as downloaded
     buf = io.BytesIO()

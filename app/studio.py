@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import signal
 import sys
 import threading
@@ -26,16 +25,17 @@ import numpy as np
 import viser
 
 from app import camera
-from app.exports import animation_file, export_files, slug
+from app.files import EXAMPLES, FileTransfers
 from app.jobs import Cancelled, Jobs
 from app.notices import Notices
 from app.panels.design import Panels
+from app.panels.drive import DrivePanel
 from app.panels.fabrication import FabricationPanel
 from app.plots import Plots
 from app.restore import RestoreOffer, offer_restore
 from app.scene import SceneView, design_scale
 from app.solver import Solver
-from app.state import StudioState, absolute_mesh, autosave_path_for, find_mesh, rescaled
+from app.state import StudioState, autosave_path_for, rescaled
 from app.status import scale_warning, status_line, unit_factor
 from app.worker import FRAME, FULL, PREVIEW, REFINE, NewestWorker
 from paraloop_core import design as design_mod
@@ -45,13 +45,13 @@ from paraloop_core.design import Design, Pose
 from paraloop_core.errors import DesignFileError, ParaloopError
 from paraloop_core.motion.evolution import evolution_settings
 
-EXAMPLES = Path(__file__).resolve().parent.parent / "assets" / "designs"
 #: Seconds between autosave checks (any edit, a drag included, is on disk within 2 s).
 AUTOSAVE_SECONDS = 1.0
 
 
-class Studio:
-    """The studio bound to one viser server (several browser tabs share it)."""
+class Studio(FileTransfers):
+    """The studio bound to one viser server (several browser tabs share it); file transfers
+    in :class:`app.files.FileTransfers`."""
 
     def __init__(self, server: viser.ViserServer, design: Design,
                  autosave_path: Path | None = None) -> None:
@@ -77,6 +77,7 @@ class Studio:
         self.panels.cancel.on_click(lambda _: self.jobs.cancel())
         self.panels.rescale.on_click(lambda _: self._rescale_units())
         self.fabrication = FabricationPanel(server, self)
+        self.drive = DrivePanel(server, self, self.fabrication)
         self.plots = Plots(server)
         self.worker = NewestWorker(self._job, on_slow=self._slow, on_slow_done=self._slow_done)
         self._stop = threading.Event()
@@ -114,64 +115,6 @@ class Studio:
             sol.motion, poly.param_to_t((u[k] + 0.5 * gaps[k]) % 1.0)))
         return Pose(pos, wxyz)
 
-    # --- files ------------------------------------------------------------------------------
-    def send_file(self, client: Any, name: str, data: bytes) -> None:
-        """Download ``data`` as ``name`` in ``client``'s page (kept in ``downloads``)."""
-        self.downloads.append((name, data))
-        del self.downloads[:-10]
-        if client is not None:
-            client.send_file_download(name, data, save_immediately=True)
-
-    def download_design(self, event: Any) -> None:
-        design = self.state.design
-        data = json.dumps(design_mod.design_to_dict(absolute_mesh(design)), indent=2) + "\n"
-        self.send_file(event.client, f"{slug(design.name)}.json", data.encode("utf-8"))
-
-    def download_export(self, event: Any) -> None:
-        sol = self.solution
-        if sol is None:
-            self.notify("Nothing to export", self.error or "no solution yet", error=True)
-            return
-        if self.error:
-            self.notify("Exporting the last valid design", self.error, error=True)
-        for name, data in export_files(sol):
-            self.send_file(event.client, name, data)
-
-    def download_animation(self, event: Any) -> None:
-        try:
-            if self.solution is None:
-                raise ValueError(self.error or "no solution yet")
-            name, data = animation_file(self.solution)
-        except ValueError as exc:
-            self.notify("Nothing to animate", str(exc), error=True)
-            return
-        self.send_file(event.client, name, data)
-
-    def upload_design(self, event: Any) -> None:
-        upload = event.target.value
-        try:
-            try:
-                data = json.loads(upload.content.decode("utf-8"))
-            except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-                raise DesignFileError("file", f"not valid JSON ({exc})") from exc
-            design = design_mod.design_from_dict(data)
-        except DesignFileError as exc:
-            self.notify(f"Cannot load {upload.name}", f"{exc} (the design is unchanged)",
-                        error=True)
-            return
-        try:
-            design = find_mesh(design, (self.state.design.base_dir, str(EXAMPLES)))
-        except DesignFileError as exc:
-            self.notify(f"Cannot load {upload.name}", f"{exc} (the design is unchanged)",
-                        error=True, cause="load")
-            return
-        # its own autosave: the opened file's one keeps that file's unsaved work
-        self.state.autosave_path = autosave_path_for(None, f"upload-{Path(upload.name).stem}")
-        self.state.commit(design)
-        self.reframe()
-        self.request(FULL, sync=True)
-        self.notify("Design loaded", upload.name, cause="load")
-
     # --- feedback ---------------------------------------------------------------------------
     def notify(self, title: str, body: str, error: bool = False, cause: str | None = None
                ) -> None:
@@ -196,6 +139,8 @@ class Studio:
         self.panels.cancel.visible = job is not None
         if job is not None:
             self.panels.cancel.label = f"Cancel job ({job})"
+        else:  # an export's parts may give the Drive folder its torque
+            self.worker.request(FRAME)
 
     def _rescale_units(self) -> None:
         """*Rescale*: the design in a unit that brings its size near 1 (one undo step)."""
@@ -244,6 +189,7 @@ class Studio:
                 self.scene.set_targets(design)
                 self.panels.sync(design)
                 self.fabrication.sync(self.state.fab)
+                self.drive.sync(design)
         if level == REFINE and version != self._refine_for:  # edited since: a plain update
             level = FULL
         stale = version != self._drawn[0] or level > self._drawn[1]
@@ -255,6 +201,7 @@ class Studio:
                 self.scene.apply_layers(self.state.hidden)
         key = level if level >= PREVIEW and stale else FRAME
         self.timings[key].append(time.perf_counter() - start)
+        self.drive.update(self.solution, design.drive, level)  # planned on its own thread
         if level == FULL and self._frame_pending:  # targets alone if nothing solved yet
             self._frame_pending = False
             self.frame_all()
@@ -369,6 +316,7 @@ class Studio:
         self._stop.set()
         self._player.join(timeout=2.0)
         self.worker.close()
+        self.drive.close()
         self.jobs.wait(10.0)
         self.autosave()
 

@@ -2,14 +2,15 @@
 
 A design is what the user edits: target poses in the world frame (position in design units +
 ``wxyz``; the first pose is the reference S_0), motion settings, the inertia ellipsoid of the
-moving body, the chosen loop and realization settings. Loading validates every field and raises
-:class:`~paraloop_core.errors.DesignFileError` naming the JSON path of the first bad field.
+moving body, the chosen loop, realization and drive settings. Loading validates every field
+and raises :class:`~paraloop_core.errors.DesignFileError` naming the JSON path of the first
+bad field.
 """
 
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, field, replace
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -23,7 +24,7 @@ from paraloop_core.tolerance import TOL
 FORMAT = "paraloop-design"
 VERSION = 1
 METHODS = ("four-pose", "fit")
-CRITERIA = ("base-axes", "end-axes", "length", "extra-poses")
+CRITERIA = ("base-axes", "end-axes", "length", "extra-poses", "smooth-drive")
 
 
 @dataclass(frozen=True)
@@ -89,6 +90,19 @@ class EndEffectorSettings:
 
 
 @dataclass(frozen=True)
+class DriveSettings:
+    """Motor drive (docs/realization.md, Drive analysis): ``motor`` joint 0..5 (None = the
+    recommended one), ``cycle_time_s`` (s), limits on every joint's peak / mean speed and
+    angular acceleration (rad/s^2; None = chosen by the planner), material density (kg/m^3)."""
+
+    motor: int | None = None
+    cycle_time_s: float = 10.0
+    max_speed_ratio: float | None = None
+    max_accel_rad_s2: float | None = None
+    density_kg_m3: float = 1240.0  # PLA
+
+
+@dataclass(frozen=True)
 class Design:
     """A complete design; edit with ``dataclasses.replace``."""
 
@@ -101,6 +115,7 @@ class Design:
     locked: tuple[int, ...] = ()
     evolution: dict[str, Any] = field(default_factory=dict)
     end_effector: EndEffectorSettings | None = None
+    drive: DriveSettings = DriveSettings()
     #: folder that relative paths in the design (the end-effector mesh) refer to; not saved
     base_dir: str | None = None
 
@@ -222,7 +237,7 @@ def design_from_dict(data: Any) -> Design:
     d = chk.obj(data, "design")
     chk.check_depth(d)
     allowed = {"format", "version", "name", "poses", "motion", "inertia", "loop",
-               "realization", "locked", "evolution", "end_effector"}
+               "realization", "locked", "evolution", "end_effector", "drive"}
     chk.check_keys(d, allowed, "design")
     if d.get("format", FORMAT) != FORMAT:
         raise DesignFileError("format", f"must be {FORMAT!r}, got {chk.short(d['format'])}")
@@ -253,6 +268,7 @@ def design_from_dict(data: Any) -> Design:
         locked=tuple(sorted(set(locked))),
         evolution=_evolution(d.get("evolution", {}), len(poses)),
         end_effector=_end_effector(d.get("end_effector")),
+        drive=DriveSettings(**chk.drive(d.get("drive", {}))),
     )
 
 
@@ -349,6 +365,7 @@ def design_to_dict(design: Design) -> dict[str, Any]:
             "mesh": design.end_effector.mesh, "shape": design.end_effector.shape,
             "scale": design.end_effector.scale, "L": design.end_effector.L,
             "R": design.end_effector.R, "clearance": design.end_effector.clearance},
+        "drive": asdict(design.drive),
     }
 
 

@@ -42,6 +42,12 @@ RELATIVE_LENGTH_RANGE = (1e-6, 1e3)
 WEIGHT_RANGE = (1e-6, 1e6)
 #: end-effector vertex indices ``L`` / ``R``
 MAX_VERTEX_INDEX = 10**7
+#: ``drive``: ``cycle_time_s`` (s), ``max_speed_ratio``, ``max_accel_rad_s2`` upper limit
+#: (rad/s^2, lower bound open at 0), ``density_kg_m3``
+CYCLE_TIME_RANGE = (0.01, 1e6)
+SPEED_RATIO_RANGE = (1.0, 1e3)
+MAX_ACCEL = 1e9
+DENSITY_RANGE = (1.0, 1e5)
 
 _REPR = reprlib.Repr()
 _REPR.maxstring = _REPR.maxother = _REPR.maxlong = 40
@@ -122,6 +128,23 @@ def check_keys(d: dict, allowed: set[str], path: str) -> None:
     if extra:
         raise DesignFileError(f"{path}.{key(extra[0])}", f"unknown key {short(extra[0])} at {path} "
                               f"(allowed: {', '.join(sorted(allowed))})")
+
+
+_DRIVE = {
+    "motor": lambda x, p: None if x is None else integer(x, p, 0, 5),
+    "cycle_time_s": lambda x, p: number(x, p, *CYCLE_TIME_RANGE),
+    "max_speed_ratio": lambda x, p: number(x, p, *SPEED_RATIO_RANGE, allow_none=True),
+    "max_accel_rad_s2": lambda x, p: positive(x, p, MAX_ACCEL, allow_none=True),
+    "density_kg_m3": lambda x, p: number(x, p, *DENSITY_RANGE),
+}
+
+
+def drive(v: Any) -> dict[str, Any]:
+    """The ``drive`` section's given fields, validated (``design.DriveSettings`` keyword
+    arguments; absent fields keep their defaults)."""
+    d = obj(v, "drive")
+    check_keys(d, set(_DRIVE), "drive")
+    return {k: _DRIVE[k](x, f"drive.{k}") for k, x in d.items()}
 
 
 def check_depth(data: Any, path: str = "design") -> None:

@@ -125,13 +125,16 @@ def _criterion_params(design: Design, unit: float) -> dict[str, Any]:
         return {"inertia": inertia_of(design, unit)}
     if m.criterion in ("base-axes", "end-axes"):
         return {"loop": design.loop, "points": None if m.targets is None else m.targets / unit}
+    if m.criterion == "smooth-drive":  # the design's motor, else the best one
+        return {"loop": design.loop, "motor": design.drive.motor}
     extra = np.array([dq.from_pos_wxyz(p.position / unit, p.wxyz) for p in m.extra_poses])
     return {"poses": extra, "inertia": inertia_of(design, unit)}
 
 
 def solve(design: Design, *, realize: bool = True, other_loops: bool = True,
           progress: Callable[[float, str], None] | None = None,
-          hint: Solution | None = None, fit: Any = None) -> Solution:
+          hint: Solution | None = None, fit: Any = None,
+          pattern: tuple[np.ndarray, np.ndarray] | None = None) -> Solution:
     """Compute the solution of a design; raises ParaloopError subclasses (ValueError) with a
     clear message for degenerate poses, non-generic motions or impossible realization
     parameters. A realization that is not found is not an error: the solution then carries
@@ -143,6 +146,8 @@ def solve(design: Design, *, realize: bool = True, other_loops: bool = True,
     loop (:func:`realize.warm_start`, certified as any other answer) and whose fit starts the
     first evolution start. ``fit``: an :class:`evolution.FitResult` already computed for this
     design's targets (the studio's drag preview), used instead of running the evolution.
+    ``pattern``: shifts and offsets (a drag preview's, :class:`WarmPreview`) tried first, like
+    ``hint``'s and certified as any answer.
 
     The motion (four-pose; a fit's is converted), its factorizations, loops and singularity
     are computed in :func:`unit_length` from the targets put on the :func:`on_unit_grid`, and
@@ -178,7 +183,7 @@ def solve(design: Design, *, realize: bool = True, other_loops: bool = True,
     sol = Solution(design, motion, monic, reference, pose_t, mu, facts, loops.nine_loops(facts),
                    s_min, s_t, fit=fit, unit=unit, loop_factors_unit=jf_u)
     if realize and design.realization.enabled:
-        warm = None if hint is None else warm_realization(sol, hint)
+        warm = warm_realization(sol, hint, pattern)
         sol = warm if warm is not None else _with_realization(sol, other_loops)
     return sol
 
@@ -191,13 +196,21 @@ def _params(sol: Solution, rho_f: float = 1.0, d_f: float = 1.0) -> dict[str, An
                 rho_fraction=r.rho_fraction * rho_f / d_f, fixed=dict(r.fixed), max_k=r.max_k)
 
 
+#: Work units (:meth:`realize.Search.work`) of the search a drag preview runs when the last
+#: realization's pattern does not clear the new loop: thin checks and exact minima only, no
+#: sound bounds (the release certifies the pattern it finds).
+PREVIEW_WORK = 1500
+
+
 @dataclass(frozen=True)
 class WarmPreview:
     """A drag preview (:func:`warm_preview`): vertices ``points`` ``(12, 3)`` (design units,
-    home) and, with an end-effector, the attached ``effector``. Never a certificate."""
+    home), with an end-effector the attached ``effector``, and the ``pattern`` ``(shifts,
+    offsets)`` that gave them (the release tries it first). Never a certificate."""
 
     points: np.ndarray
     effector: Any = None
+    pattern: tuple[np.ndarray, np.ndarray] | None = None
 
     def end_link(self) -> np.ndarray:
         """End-link path ``(4, 3)`` at home, ``S_3, L, R, E_3`` (with an end-effector)."""
@@ -205,62 +218,81 @@ class WarmPreview:
         return np.stack([v[6], e.vertices[e.L], e.vertices[e.R], v[7]])
 
 
-def _hint_search(sol: Solution, hint: Solution) -> tuple[Any, Any, dict[str, Any]] | None:
-    """``(search, effector, run_hint keyword arguments)`` of ``sol``'s loop, trying the shifts
-    and offsets of ``hint``'s realization, when ``hint`` realized the same loop with the same
-    end-effector kind; else None."""
+def _hint_pattern(sol: Solution, hint: Solution | None) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(shifts, offsets)`` of ``hint``'s realization when it realized ``sol``'s loop with the
+    same end-effector kind, else None."""
+    real = None if hint is None else hint.realization
+    if (real is None or hint.design.loop != sol.design.loop
+            or not sol.design.realization.enabled
+            or (hint.end_effector is None) != (sol.design.end_effector is None)):
+        return None
+    return real.shifts, real.offsets
+
+
+def _pattern_search(sol: Solution, pattern: tuple | None = None
+                    ) -> tuple[Any, Any, dict[str, Any]]:
+    """``(search, effector, keyword arguments)`` on ``sol``'s loop: those of ``run_hint`` for
+    ``pattern`` ``(shifts, offsets)``, else of ``run``."""
     from paraloop_core.realization import realize as realize_mod
 
-    real, design = hint.realization, sol.design
-    if (real is None or hint.design.loop != design.loop or not design.realization.enabled
-            or (hint.end_effector is None) != (design.end_effector is None)):
-        return None
     params = _params(sol)
     fixed = params.pop("fixed")
-    params.update(shifts=real.shifts, offsets=real.offsets)
-    jf, in_unit = sol.search_factors(design.loop)
-    if design.end_effector is None:
+    if pattern is not None:
+        params.update(shifts=pattern[0], offsets=pattern[1])
+    jf, in_unit = sol.search_factors(sol.design.loop)
+    if sol.design.end_effector is None:
         return realize_mod.Search(jf, fixed, in_unit), None, params
     from paraloop_core.realization import realize_ee
 
     effector = attach_end_effector(sol)
-    search = realize_ee.EffectorSearch(jf, fixed, effector, design.end_effector.clearance,
+    search = realize_ee.EffectorSearch(jf, fixed, effector, sol.design.end_effector.clearance,
                                        in_unit)
     return search, effector, params
 
 
 def warm_preview(sol: Solution, hint: Solution) -> WarmPreview | None:
     """``sol``'s loop with the shifts and offsets of ``hint``'s realization when the thin
-    checks (P included) and the exact minima (Sec. 5.1) clear them, else None. Not certified
-    (no sound bounds): a drag shows it, the release certifies (:func:`warm_realization`)."""
+    checks (P included) and the exact minima (Sec. 5.1) clear them; else (no end-effector)
+    the first pattern a search of :data:`PREVIEW_WORK` units finds with the same checks; else
+    None. Not certified (no sound bounds): a drag shows it, the release certifies
+    (:func:`warm_realization`)."""
+    pattern = _hint_pattern(sol, hint)
     try:
-        found = _hint_search(sol, hint)
-        if found is None:
+        if pattern is not None:
+            search, effector, params = _pattern_search(sol, pattern)
+            pts = search.run_hint(**params, certify=False)
+            if pts is not None:
+                return WarmPreview(pts, effector, pattern)
+        if sol.design.end_effector is not None or not sol.design.realization.enabled:
             return None
-        search, effector, params = found
-        pts = search.run_hint(**params, certify=False)
+        search, _, params = _pattern_search(sol)
+        shifts, offsets, pts = search.run(**params, budget=PREVIEW_WORK, certify=False)
     except (RealizationError, ValueError):  # e.g. a mesh gone: the full update says why
         return None
-    return None if pts is None else WarmPreview(pts, effector)
+    return WarmPreview(pts, None, (shifts, offsets))
 
 
-def warm_realization(sol: Solution, hint: Solution) -> Solution | None:
-    """``sol`` realized with the shifts and offsets of ``hint``'s realization when ``hint``
-    realized the same loop (same end-effector kind) and they realize ``sol``'s loop too; else
-    None. Cheap (one candidate), so a drag can show the realized loop at every step."""
-    try:
-        found = _hint_search(sol, hint)
-        if found is None:
-            return None
-        search, effector, params = found
-        out = search.run_hint(**params)
-    except (RealizationError, ValueError):  # a spherical loop, a mesh gone: the search says why
-        return None
-    if out is None:
-        return None
-    real, ee = (out, None) if effector is None else (out.realization, out)
-    report = {"status": "found", "attempts": [], "fallback": None, "warm_start": True}
-    return replace(sol, realization=real, end_effector=ee, realization_report=report)
+def warm_realization(sol: Solution, hint: Solution | None,
+                     pattern: tuple[np.ndarray, np.ndarray] | None = None) -> Solution | None:
+    """``sol`` realized with ``pattern`` ``(shifts, offsets)`` (a drag preview's) or else the
+    shifts and offsets of ``hint``'s realization (same loop and end-effector kind), when they
+    realize ``sol``'s loop, certified as any answer; else None. Cheap (one candidate each)."""
+    tried = []
+    for pat in (pattern, _hint_pattern(sol, hint)):
+        if pat is None or any(np.array_equal(pat[0], a) and np.array_equal(pat[1], b)
+                              for a, b in tried):
+            continue
+        tried.append(pat)
+        try:
+            search, effector, params = _pattern_search(sol, pat)
+            out = search.run_hint(**params)
+        except (RealizationError, ValueError):  # a spherical loop, a mesh gone: the search
+            continue  # says why
+        if out is not None:
+            real, ee = (out, None) if effector is None else (out.realization, out)
+            report = {"status": "found", "attempts": [], "fallback": None, "warm_start": True}
+            return replace(sol, realization=real, end_effector=ee, realization_report=report)
+    return None
 
 
 #: Largest singularity measure (unit-free, the best of the nine loops) below which a design
@@ -408,6 +440,13 @@ def result_to_dict(sol: Solution) -> dict[str, Any]:
         from paraloop_core.realization import ee_certificate
 
         out["end_effector"] = ee_certificate.ee_to_dict(sol.end_effector)
+    from paraloop_core.linkage import drive_plan
+
+    try:  # the chosen loop in design units, base link resting; never fails a solve
+        out["drive"] = drive_plan.plan_to_dict(drive_plan.plan_drive(
+            sol.loop.joint_factors, sol.design.drive, resting_link=0))
+    except ValueError as exc:
+        out["drive"] = {"error": str(exc)}
     return out
 
 

@@ -7,6 +7,8 @@ import json
 from pathlib import Path
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from paraloop_core import design as dm
 from paraloop_core.errors import DesignFileError
@@ -222,3 +224,62 @@ def test_save_refuses_non_finite_and_leaves_nothing(tmp_path):
         dm.save_design(bad, out)
     assert list(tmp_path.iterdir()) == []
     assert np.isfinite(d.inertia.weight)
+
+
+def test_drive_settings_round_trip_and_defaults(tmp_path):
+    assert dm.design_from_dict(TV8).drive == dm.DriveSettings()  # no section: defaults
+    drive = {"motor": 3, "cycle_time_s": 4.5, "max_speed_ratio": 2.5, "max_accel_rad_s2": 0.7,
+             "density_kg_m3": 1000}
+    d = dm.design_from_dict({**TV8, "drive": drive})
+    assert d.drive == dm.DriveSettings(3, 4.5, 2.5, 0.7, 1000.0)
+    dm.save_design(d, tmp_path / "d.json")
+    again = dm.load_design(tmp_path / "d.json")
+    assert again.drive == d.drive and dm.design_to_dict(again)["drive"] == drive
+    partial = dm.design_from_dict({**TV8, "drive": {"max_speed_ratio": 3}})
+    assert partial.drive == dm.DriveSettings(max_speed_ratio=3.0)
+    crit = dm.design_from_dict(_mutated(["motion", "criterion"], "smooth-drive"))
+    assert crit.motion.criterion == "smooth-drive"
+
+
+@pytest.mark.parametrize("drive, field, words", [
+    ({"motor": 6}, "drive.motor", "integer in 0..5, got 6"),
+    ({"motor": 1.0}, "drive.motor", "integer in 0..5"),
+    ({"motor": True}, "drive.motor", "integer in 0..5"),
+    ({"cycle_time_s": 0.001}, "drive.cycle_time_s", "[0.01, 1e+06]"),
+    ({"cycle_time_s": None}, "drive.cycle_time_s", "must be a number in [0.01, 1e+06]"),
+    ({"max_speed_ratio": 0.99}, "drive.max_speed_ratio", "[1, 1000]"),
+    ({"max_speed_ratio": "2"}, "drive.max_speed_ratio", "number in [1, 1000]"),
+    ({"max_accel_rad_s2": 0}, "drive.max_accel_rad_s2", "(0, 1e+09]"),
+    ({"max_accel_rad_s2": float("inf")}, "drive.max_accel_rad_s2", "finite"),
+    ({"density_kg_m3": 0.5}, "drive.density_kg_m3", "[1, 100000]"),
+    ({"torque": 1}, "drive.torque", "unknown key 'torque' at drive (allowed: cycle_time_s"),
+    (None, "drive", "must be an object"),
+], ids=lambda v: str(v)[:24])
+def test_drive_errors_name_field_and_range(drive, field, words):
+    with pytest.raises(DesignFileError) as info:
+        dm.design_from_dict({**TV8, "drive": drive})
+    msg = str(info.value)
+    assert info.value.field == field and msg.startswith(field) and "\n" not in msg
+    assert words in msg
+
+
+_DRIVE_VALUES = st.sampled_from([None, 0, 1, 5, 6, -1, 0.0, 0.005, 0.01, 0.5, 1.0, 2.5, 10,
+                                 1e3, 1e3 + 1, 1e5, 1e6, 1e9, 2e9, True, "1", [1]])
+
+
+@settings(max_examples=200, deadline=None, derandomize=True)
+@given(st.dictionaries(st.sampled_from(["motor", "cycle_time_s", "max_speed_ratio",
+                                        "max_accel_rad_s2", "density_kg_m3", "x"]),
+                       _DRIVE_VALUES, max_size=5))
+def test_drive_loader_and_schema_agree(drive):
+    import jsonschema
+    schema = json.loads((Path(dm.__file__).with_name("design.schema.json")).read_text())
+    data = {**TV8, "drive": drive}
+    schema_ok = jsonschema.Draft202012Validator(schema).is_valid(data)
+    try:
+        dm.design_from_dict(data)
+    except DesignFileError as exc:  # the schema's "integer" also takes 1.0: the loader not
+        assert exc.field.startswith("drive")
+        assert not schema_ok or exc.field == "drive.motor" and isinstance(drive["motor"], float)
+    else:
+        assert schema_ok

@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from paraloop_core.algebra import dq, poly
 from paraloop_core.errors import FitError
-from paraloop_core.motion import closest, evolution, metric
+from paraloop_core.motion import closest, evolution, metric, selection
 from paraloop_core.motion import evolution_stages as stages
 from tests.conftest import random_rotation_factors
 
@@ -211,3 +212,40 @@ def test_validate_evolution_cli_writes_png_csv(tmp_path, capsys):
     assert rows[0].startswith("iteration,mean,best_run,worst_run") and len(rows) >= 2
     summary = json.loads((tmp_path / "fig16_summary.json").read_text())
     assert summary["starts"] == 3 and "3 starts on 6 targets" in capsys.readouterr().out
+
+
+def test_smooth_drive_weight_ranks_towards_smoother_starts():
+    targets, _ = sampled_targets(seed=11)
+    noisy = dq.normalize(targets + 0.1 * np.random.default_rng(1).normal(size=targets.shape))
+    settings = evolution.EvolutionSettings(starts=6, seed=0, max_iterations=30)
+    world, results = evolution.evolve_starts(noisy, SPHERE, settings)
+    scale = evolution.cost_scale(dq.normalize(dq.mul(dq.conj(world[0]), world)), SPHERE)
+    usable = [r for r in results if r.status in ("converged", "stalled") and not r.loops]
+    pen = {r.index: float(selection.smooth_drive_scores(poly.from_factors(r.factors))[0])
+           for r in usable}
+    assert evolution.best_start(results, 0.0, scale) is evolution.best_start(results)
+    picks = [evolution.best_start(results, w, scale) for w in (0.0, 1e-3, 0.1, 10.0)]
+    cost = [p.cost_history[-1] for p in picks]
+    smooth = [pen[p.index] for p in picks]
+    # a weighted sum: more weight never raises the penalty nor lowers the cost
+    assert all(np.diff(smooth) <= 0) and all(np.diff(cost) >= 0)
+    assert smooth[-1] < 0.7 * smooth[0] and cost[-1] > cost[0]  # this case: a real trade-off
+    assert smooth[-1] == min(pen.values())
+    for p, w in zip(picks, (0.0, 1e-3, 0.1, 10.0), strict=True):  # the winner has the least key
+        keys = [r.cost_history[-1] / scale + w * np.log(pen[r.index]) for r in usable]
+        assert p.cost_history[-1] / scale + w * np.log(pen[p.index]) == min(keys)
+    # fit_motion ranks with the setting (starts are independent of it)
+    res = evolution.fit_motion(noisy, SPHERE, replace(settings, smooth_drive=0.1))
+    assert res.winning_start == picks[2].index
+
+
+def test_smooth_drive_setting_validation():
+    assert evolution.evolution_settings({"smooth_drive": 0}) == evolution.EvolutionSettings()
+    assert evolution.evolution_settings({"smooth_drive": 2.5}).smooth_drive == 2.5
+    for bad in (-0.1, float("inf"), True, "1", 2e6):
+        with pytest.raises(ValueError, match=r"smooth_drive.*\[0, 1e\+06\]"):
+            evolution.evolution_settings({"smooth_drive": bad})
+    with pytest.raises(ValueError, match="smooth_drive"):
+        evolution.EvolutionSettings(smooth_drive=-1.0)
+    with pytest.raises(ValueError, match="scale"):
+        evolution.best_start([], 0.1, 0.0)

@@ -51,7 +51,8 @@ json_values = st.recursive(
     max_leaves=12,
 )
 KEYS = ["foo", "p", "d", "rho", "max_k", "seed", "workers", "max_iterations", "starts", "mu",
-        "position", "wxyz", "version", "format", "mesh", "shape", "0", "7", "fixed", "L"]
+        "position", "wxyz", "version", "format", "mesh", "shape", "0", "7", "fixed", "L",
+        "drive", "motor", "cycle_time_s", "max_speed_ratio", "smooth_drive"]
 
 
 def _paths(node, prefix=()):

@@ -8,9 +8,9 @@ from hypothesis import given, settings
 
 from paraloop_core.algebra import dq, factor, poly
 from paraloop_core.errors import InterpolationError
-from paraloop_core.linkage import loops
+from paraloop_core.linkage import drive, loops
 from paraloop_core.motion import fourpose, metric, selection
-from tests.conftest import seeds
+from tests.conftest import random_rotation_factors, seeds
 from tests.test_fourpose import world_poses_on_cubic
 
 SPHERE = metric.sphere(1.0)
@@ -127,3 +127,77 @@ def test_parameter_validation(fams):
         selection.best_mu(fams, 2, "length", inertia=SPHERE)
     with pytest.raises(InterpolationError):
         fourpose.four_pose_motion_batch(fams, 0, np.array([1.0]))
+
+
+def grid_penalty(fams: fourpose.FourPoseFamilies, family: int, loop: int, n: int
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """``(mus, penalty)`` of the generic cubics on a dense grid, straight from the motor x
+    joint table of :func:`drive.peak_speed_ratios` (no selection code)."""
+    mus = dense_thetas(fams, family, n)
+    mus = mus[~fourpose.bad_mu_mask(fams, family, mus)]
+    facts = factor.all_factorizations_batch(fourpose.four_pose_motion_batch(fams, family, mus))
+    ok = facts.code == 0
+    jf = loops.loop_joint_factors(facts.factors[ok])[:, loop]
+    return mus[ok], drive.peak_speed_ratios(jf).max(axis=-1).min(axis=-1)
+
+
+def test_smooth_drive_picks_the_smoothest_mu(fams):
+    loop = 4
+    for family in (0, 1):
+        mu, score = selection.best_mu(fams, family, "smooth-drive", loop=loop)
+        _, dense = grid_penalty(fams, family, loop, 4000)
+        assert 1.0 <= score <= dense.min() * (1 + 1e-9)
+        # smoother than mu = inf and the shortest motion's mu
+        mu_len, _ = selection.best_mu(fams, family, "length", inertia=SPHERE)
+        other = selection.score_mu(fams, family, np.array([np.inf, mu_len]), "smooth-drive",
+                                   loop=loop)
+        assert score <= other.min()
+        # the score is the worst joint's peak / mean speed with the best motor, checked by
+        # sampling each motor's speeds (drive.constant_speed) in the world frame
+        world = fourpose.world_motion(fams.poses[0], fourpose.four_pose_motion(fams, family, mu))
+        jf = loops.loop_joint_factors(factor.all_factorizations(world).factors)[loop]
+        worst = [drive.constant_speed(jf, m, 1.0).peak_speed_ratio.max() for m in range(6)]
+        assert min(worst) == pytest.approx(score, rel=1e-9)
+        # a fixed motor scores that motor's worst joint on the chosen loop
+        fixed = selection.score_mu(fams, family, np.array([mu]), "smooth-drive", loop=loop,
+                                   motor=2)
+        assert fixed[0] == pytest.approx(worst[2], rel=1e-9)
+    mu, score = selection.best_mu(fams, 0, "smooth-drive", loop=loop)  # this case: much lower
+    assert score < 0.5 * selection.score_mu(fams, 0, np.array([np.inf]), "smooth-drive")[0]
+    # with the best motor, every loop has the same penalty (each carries every norm root twice)
+    per_loop = [selection.score_mu(fams, 0, np.array([mu]), "smooth-drive", loop=k)[0]
+                for k in range(9)]
+    np.testing.assert_allclose(per_loop, score, rtol=1e-9)
+
+
+def test_smooth_drive_non_generic_scores_inf():
+    # seed 14, family 1: an interval of mu whose cubic has a real norm root (not factorable)
+    fams14 = fourpose.four_pose_families(world_poses_on_cubic(np.random.default_rng(14)))
+    mus = dense_thetas(fams14, 1, 4000)
+    mus = mus[~fourpose.bad_mu_mask(fams14, 1, mus)]
+    code = factor.all_factorizations_batch(fourpose.four_pose_motion_batch(fams14, 1, mus)).code
+    assert (code != 0).sum() > 10 and (code == 0).sum() > 10
+    s = selection.score_mu(fams14, 1, mus, "smooth-drive", loop=3)
+    assert np.all(np.isinf(s[code != 0])) and np.all(np.isfinite(s[code == 0]))
+    mu, score = selection.best_mu(fams14, 1, "smooth-drive", loop=3)
+    assert np.isfinite(score) and score >= 1.0
+    # batches mixing generic and non-generic cubics (repeated / translational factor)
+    h = random_rotation_factors(np.random.default_rng(0))
+    trans = h.copy()
+    trans[1, 1:4] = 0.0
+    cubics = np.stack([poly.from_factors(h), poly.from_factors(h[[0, 0, 1]]),
+                       poly.from_factors(trans)])
+    pen, code = selection.smooth_drive_scores(cubics, loop=5, motor=1)
+    assert np.isfinite(pen[0]) and np.all(np.isinf(pen[1:])) and np.all(code[1:] != 0)
+    assert pen[0] == pytest.approx(drive.smooth_drive_penalty(
+        loops.loop_joint_factors(factor.all_factorizations(cubics[0]).factors)[5], 1))
+    one, one_code = selection.smooth_drive_scores(cubics[2])
+    assert one.shape == () and np.isinf(one) and one_code != 0
+
+
+def test_smooth_drive_parameter_validation(fams):
+    mus = np.array([0.0])
+    for bad, match in (({"loop": 9}, "loop"), ({"loop": True}, "loop"), ({"motor": 6}, "motor"),
+                       ({"motor": True}, "motor"), ({"inertia": SPHERE}, "unexpected")):
+        with pytest.raises(ValueError, match=match):
+            selection.score_mu(fams, 0, mus, "smooth-drive", **bad)

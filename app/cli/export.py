@@ -26,7 +26,7 @@ from paraloop_core import design as design_mod
 from paraloop_core import pipeline
 from paraloop_core.design import Design
 from paraloop_core.errors import ParaloopError, RealizationError
-from paraloop_core.fabrication import printable, rhino, sizing
+from paraloop_core.fabrication import drive_mass, printable, rhino, sizing
 
 #: the fixed names written into DIR (plus the numbered ones of :data:`NUMBERED`)
 FIXED_NAMES = ("paraloop.3mf", "assembly.glb", "report.json", "assembly.md", "paraloop.3dm")
@@ -84,7 +84,8 @@ def cmd_export(args: argparse.Namespace) -> int:
         ground_axis=args.ground_axis, ground_link=args.ground_link,
         space_radius=args.carve_radius, resolution=args.resolution, samples=args.samples,
         effector=sol.end_effector, rhino=args.rhino, fixed=dict(design.realization.fixed),
-        alternatives=sol.other_loops(), progress=None if args.quiet else _print_progress))
+        alternatives=sol.other_loops(), drive=design.drive,
+        progress=None if args.quiet else _print_progress))
     if result is None:
         return code
     outputs.write_files(out, result.files)
@@ -98,6 +99,7 @@ def cmd_export(args: argparse.Namespace) -> int:
           f"{ver['min_gap_mm']:.3f} mm, "
           f"continuous bound {ver['continuous_min_gap_mm']:.3f} mm, "
           f"joint clearance {ver['joint_clearance_mm']:.3f} mm")
+    print(f"{path}: {drive_mass.drive_line(result.report['drive'])}")
     if ver["ok"] and not ver["printable"]:
         print(f"warning: {path}: parts are collision-free but some gaps are under half the "
               "clearance and may fuse when printed", file=sys.stderr)

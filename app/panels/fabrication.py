@@ -22,6 +22,7 @@ from app.scene import SPACES_LAYER
 from app.state import FabSettings
 from app.worker import FRAME
 from paraloop_core.errors import FabricationError
+from paraloop_core.fabrication import drive_mass
 from paraloop_core.fabrication.parts import design_scale
 
 if TYPE_CHECKING:
@@ -253,7 +254,8 @@ class FabricationPanel:
             f"**Verification: {word}** min gap {v['min_gap_mm']:.3f} mm, certified continuous "
             f"gap {v['continuous_min_gap_mm']:.3f} mm, joint clearance "
             f"{v['joint_clearance_mm']:.3f} mm" + ("" if v["printable"] else
-                                                   " (some gaps under half the clearance)"))
+                                                   " (some gaps under half the clearance)")
+            + f". **Drive:** {drive_mass.drive_line(report['drive'])}")
         self.progress_text.content = f"Exported {name}."
         if not v["ok"]:
             studio.notify("Verification failed", "see report.json in the zip", error=True)

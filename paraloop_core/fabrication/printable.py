@@ -28,8 +28,9 @@ from dataclasses import replace
 
 import numpy as np
 
+from paraloop_core.design import DriveSettings
 from paraloop_core.errors import FabricationError, RealizationError
-from paraloop_core.fabrication import export, guide, sizing, thickness
+from paraloop_core.fabrication import drive_mass, export, guide, sizing, thickness
 from paraloop_core.fabrication.export import ExportResult
 from paraloop_core.fabrication.parts import Assembly, PartSpec
 from paraloop_core.realization import realize
@@ -125,6 +126,7 @@ def export_printable(realization: Realization, *,
                      ground: bool = True, samples: int = 720,
                      fixed: dict[int, float] | None = None,
                      alternatives: Mapping[int, np.ndarray] | None = None,
+                     drive: DriveSettings | None = None,
                      progress: export.Progress | None = None, **options) -> ExportResult:
     """Parts of ``realization`` sized for ``printer`` (module docstring); ``options`` as
     :func:`export.export_parts`. The parts are built (and exported) per size tried, verified
@@ -132,7 +134,8 @@ def export_printable(realization: Realization, *,
     constraint, the printer, bed fit, ``realization``: what :func:`roomier` did) and
     ``warnings``; ``fixed``: the design's fixed vertices (for :func:`roomier`, used with an
     automatic size and no end-effector) and ``alternatives`` its other loops (index -> joint
-    factors), tried by :func:`roomier` too."""
+    factors), tried by :func:`roomier` too. ``drive``: the design's motor and material density
+    (None: the defaults) for the report's ``drive`` entry (masses, torque; :mod:`drive_mass`)."""
     real, note = realization, None
     warnings: list[str] = []
     auto = size_mm is None
@@ -174,6 +177,8 @@ def export_printable(realization: Realization, *,
     files = [(n, b) for n, b in result.files if n != "report.json"]
     meshes = {p.name: export.part_trimesh(p) for p in result.assembly.parts}
     report["walls"] = walls
+    resting = report.get("grounding", {}).get("link", 0)  # no column: link 0 stays still
+    report["drive"] = drive_mass.drive_entry(result.assembly, resting, drive, meshes)
     if not walls["ok"]:
         thin = [n for n, w in walls["parts"].items() if not w["ok"]]
         warnings.append(f"walls under {printer.wall_mm:g} mm on more than 5 % of the surface of "

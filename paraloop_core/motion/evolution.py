@@ -24,7 +24,7 @@ import numpy as np
 
 from paraloop_core.algebra import dq, factor, poly
 from paraloop_core.errors import FitError, InterpolationError
-from paraloop_core.motion import closest, fourpose, metric
+from paraloop_core.motion import closest, fourpose, metric, selection
 from paraloop_core.motion.evolution_stages import (
     EvolutionSettings,
     Problem,
@@ -205,8 +205,7 @@ def evolve_starts(
     world = check_targets(targets, inertia)
     rel = dq.normalize(dq.mul(dq.conj(world[0]), world))
     rel[0] = dq.IDENTITY
-    chords = metric.distance_sq(rel, np.roll(rel, -1, axis=0), inertia)
-    prob = Problem(rel, rel, np.arange(len(rel)), inertia, float(np.sum(chords)))
+    prob = Problem(rel, rel, np.arange(len(rel)), inertia, cost_scale(rel, inertia))
     fix = None
     if settings.loop_fix and settings.ordered:
         guides, real = with_virtual_targets(rel, inertia, settings.virtual)
@@ -246,12 +245,30 @@ def evolve_starts(
     return world, sorted(results, key=lambda r: r.index)
 
 
-def best_start(results: list[StartResult]) -> StartResult | None:
-    """Lowest final cost among converged or stalled starts, loop-free ones first; None if none."""
+def cost_scale(rel: np.ndarray, inertia: metric.Inertia) -> float:
+    """Summed squared metric chords of consecutive targets ``(m, 8)``, the closing one
+    included: the scale of a fit's cost."""
+    return float(np.sum(metric.distance_sq(rel, np.roll(rel, -1, axis=0), inertia)))
+
+
+def best_start(results: list[StartResult], smooth_drive: float = 0.0,
+               scale: float = 1.0) -> StartResult | None:
+    """The best converged or stalled start, loop-free ones first; None if none. Ranked by final
+    cost, or for ``smooth_drive`` w > 0 by ``cost / scale + w ln(penalty)``, penalty = the
+    smooth-drive penalty of the start's cubic (best motor, the same for all nine loops;
+    :func:`selection.smooth_drive_scores`, inf if not generic), ties by cost."""
+    if not (np.isfinite(smooth_drive) and smooth_drive >= 0 and np.isfinite(scale) and scale > 0):
+        raise ValueError(f"need smooth_drive >= 0 and scale > 0, got {smooth_drive!r}, {scale!r}")
     usable = [r for r in results if r.status in ("converged", "stalled")]
     for pool in ([r for r in usable if not r.loops], usable):
-        if pool:
+        if not pool:
+            continue
+        if smooth_drive == 0:
             return min(pool, key=lambda r: r.cost_history[-1])
+        pen, _ = selection.smooth_drive_scores(
+            np.stack([poly.from_factors(r.factors) for r in pool]))
+        cost = np.array([r.cost_history[-1] for r in pool])
+        return pool[int(np.lexsort((cost, cost / scale + smooth_drive * np.log(pen)))[0])]
     return None
 
 
@@ -268,7 +285,8 @@ def fit_motion(
     """
     settings = settings or EvolutionSettings()
     world, results = evolve_starts(targets, inertia, settings, progress, initial)
-    best = best_start(results)
+    rel = dq.normalize(dq.mul(dq.conj(world[0]), world))
+    best = best_start(results, settings.smooth_drive, cost_scale(rel, inertia))
     if best is None:
         counts = {s: sum(r.status == s for r in results) for s in ("unordered", "degenerate")}
         raise FitError(
@@ -276,7 +294,6 @@ def fit_motion(
             f"targets in order, {counts['degenerate']} degenerated); try more starts, more "
             "iterations, init='four-pose' or ordered=False", "no-convergence")
     c = evolve_motion(best)
-    rel = dq.normalize(dq.mul(dq.conj(world[0]), world))
     t, d2 = closest.closest_pose(c, rel, inertia)
     if not settings.free_reference:
         t[0], d2[0] = np.inf, 0.0
@@ -306,7 +323,7 @@ def evolution_settings(options: dict) -> EvolutionSettings:
     from paraloop_core.errors import DesignFileError
 
     numbers = {"w0": (1.0, 1e6, False), "q": (0.0, 1.0, True), "tol": (1e-15, 1.0, False),
-               "loop_ratio": (1.0, 1e6, True)}
+               "loop_ratio": (1.0, 1e6, True), "smooth_drive": (0.0, 1e6, False)}
     integers = {"max_iterations": (1, 10_000), "starts": (1, 1000), "seed": (0, 2**32 - 1),
                 "workers": (1, 256), "virtual": (1, 100)}
     flags = ("free_reference", "ordered", "loop_fix", "move_guides")

@@ -38,7 +38,8 @@ class EvolutionSettings:
     loop between adjacent targets, ``virtual`` virtual targets per gap in the loop fix,
     ``move_guides``: with closest-pose guides the Gauss-Newton step also moves the guiding
     parameters (joint step in (x, t): fast convergence); False freezes them (MATH 8 literally,
-    linear convergence).
+    linear convergence); ``smooth_drive`` weight >= 0 of the smooth-drive penalty in the
+    ranking of finished starts (0: by cost alone; :func:`.evolution.best_start`).
     """
 
     w0: float = 3.0
@@ -56,6 +57,7 @@ class EvolutionSettings:
     loop_ratio: float = 3.0
     virtual: int = 1
     move_guides: bool = True
+    smooth_drive: float = 0.0
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.w0) and self.w0 >= 1.0):
@@ -76,6 +78,8 @@ class EvolutionSettings:
             raise ValueError("four_pose_indices must be 4 distinct target indices starting with 0")
         if not self.loop_ratio > 1.0 or self.virtual < 1:
             raise ValueError("loop_ratio must be > 1 and virtual >= 1")
+        if not (np.isfinite(self.smooth_drive) and self.smooth_drive >= 0):
+            raise ValueError(f"smooth_drive must be a number >= 0, got {self.smooth_drive!r}")
 
 
 @dataclass(frozen=True)

@@ -19,6 +19,13 @@ where the family degenerates (:func:`fourpose.bad_mu_mask`) or the cubic is not 
   of the squared metric distance to the closest pose of the motion: critical points of MATH
   section 8 (2a) plus motion-adapted samples, polished on the distance (see
   :func:`closest.closest_pose`; never above a 20001-sample scan in tests).
+* ``"smooth-drive"``: optional ``loop`` (0..8, default 0) and ``motor`` (joint 0..5 of that
+  loop, default None = the best motor); score = :func:`drive.smooth_drive_penalty` of the
+  loop's joint factors: the worst over the six joints of peak / mean speed with the motor
+  turning at constant speed (>= 1; 1 = every joint turns uniformly). It depends only on the
+  cubic's norm roots and on which joints carry them, so it is unchanged by conjugation
+  (S_0 frame = world frame) and, with the best motor, the same for all nine loops (each loop
+  carries every norm root on two joints); a fixed ``motor`` makes the loop matter.
 
 The metric is left invariant, so length and pose distances are computed in the S_0 frame.
 """
@@ -29,7 +36,7 @@ import numpy as np
 
 from paraloop_core.algebra import dq, factor
 from paraloop_core.errors import NonGenericMotionError
-from paraloop_core.linkage import loops
+from paraloop_core.linkage import drive, loops
 from paraloop_core.motion import closest, metric
 from paraloop_core.motion.fourpose import (
     FourPoseFamilies,
@@ -38,13 +45,14 @@ from paraloop_core.motion.fourpose import (
     world_motion,
 )
 
-CRITERIA = ("base-axes", "end-axes", "length", "extra-poses")
+CRITERIA = ("base-axes", "end-axes", "length", "extra-poses", "smooth-drive")
 _AXIS_INDEX = {"base-axes": (0, 5), "end-axes": (2, 3)}
 _PARAMS = {
     "base-axes": {"points", "loop", "weights"},
     "end-axes": {"points", "loop", "weights"},
     "length": {"inertia", "samples"},
     "extra-poses": {"poses", "inertia"},
+    "smooth-drive": {"loop", "motor"},
 }
 
 
@@ -60,6 +68,28 @@ def _check_params(criterion: str, params: dict) -> None:
         raise ValueError(f"criterion {criterion!r} needs inertia=metric.Inertia(...)")
 
 
+def _loop_index(loop: object) -> int:
+    if isinstance(loop, bool) or loop not in range(len(loops.LOOP_PAIRS)):
+        raise ValueError(f"loop must be an index 0..{len(loops.LOOP_PAIRS) - 1}, got {loop!r}")
+    return int(loop)
+
+
+def smooth_drive_scores(c_monic: np.ndarray, loop: int = 0, motor: int | None = None
+                        ) -> tuple[np.ndarray, np.ndarray]:
+    """Smooth-drive penalties ``(...)`` of monic cubics ``(..., 4, 8)`` (``inf`` where not
+    generic) and the :func:`factor.all_factorizations_batch` codes ``(...)``; ``loop`` 0..8,
+    ``motor`` joint 0..5 or None (the best). See the module docstring."""
+    loop = _loop_index(loop)
+    if motor is not None and (isinstance(motor, bool) or motor not in range(6)):
+        raise ValueError(f"motor must be None or a joint index 0..5, got {motor!r}")
+    facts = factor.all_factorizations_batch(c_monic)
+    jf = loops.loop_joint_factors(facts.factors)[..., loop, :, :]
+    good = (facts.code == 0) & np.isfinite(jf).all(axis=(-2, -1))
+    out = np.full(good.shape, np.inf)
+    out[good] = drive.smooth_drive_penalty(jf[good], motor)
+    return out, facts.code
+
+
 def _axis_score(c_world: np.ndarray, axes_idx: tuple[int, int], params: dict) -> tuple:
     points = np.asarray(params.get("points"), dtype=np.float64)
     if points.shape != (2, 3) or not np.all(np.isfinite(points)):
@@ -68,11 +98,9 @@ def _axis_score(c_world: np.ndarray, axes_idx: tuple[int, int], params: dict) ->
     weights = np.asarray(params.get("weights", (1.0, 1.0)), dtype=np.float64)
     if weights.shape != (2,) or np.any(weights < 0) or not np.all(np.isfinite(weights)):
         raise ValueError("weights must be two finite numbers >= 0")
-    loop = params.get("loop", 0)
-    if loop not in range(len(loops.LOOP_PAIRS)):
-        raise ValueError(f"loop must be an index 0..{len(loops.LOOP_PAIRS) - 1}, got {loop!r}")
+    loop = _loop_index(params.get("loop", 0))
     facts = factor.all_factorizations_batch(c_world)
-    jf = loops.loop_joint_factors(facts.factors)[..., int(loop), list(axes_idx), :]
+    jf = loops.loop_joint_factors(facts.factors)[..., loop, list(axes_idx), :]
     ax = loops.factor_axes(jf)  # (M, 2, 6) unit world lines
     d2 = np.sum((np.cross(points, ax[..., :3]) - ax[..., 3:]) ** 2, axis=-1)
     return d2 @ weights, facts.code
@@ -94,6 +122,8 @@ def score_mu(fams: FourPoseFamilies, family: int, mus: np.ndarray, criterion: st
     if criterion in _AXIS_INDEX:
         score, code = _axis_score(world_motion(fams.poses[0], c_rel), _AXIS_INDEX[criterion],
                                   params)
+    elif criterion == "smooth-drive":
+        score, code = smooth_drive_scores(c_rel, params.get("loop", 0), params.get("motor"))
     else:
         facts = factor.all_factorizations_batch(c_rel)  # conjugation keeps genericity
         code, inertia = facts.code, params["inertia"]

@@ -1,0 +1,85 @@
+"""The studio's file transfers: *Save design*, *Export result*, *Animation* downloads and
+*Load design* uploads (a mixin of :class:`app.studio.Studio`, which supplies the state, the
+solution, notifications and update requests)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from app.exports import animation_file, export_files, slug
+from app.state import StudioState, absolute_mesh, autosave_path_for, find_mesh
+from app.worker import FULL
+from paraloop_core import design as design_mod
+from paraloop_core import pipeline
+from paraloop_core.errors import DesignFileError
+
+EXAMPLES = Path(__file__).resolve().parent.parent / "assets" / "designs"
+
+
+class FileTransfers:
+    """Downloads (kept in ``downloads``, the last 10) and design uploads; the host class
+    supplies the attributes below and ``notify``, ``reframe`` and ``request``."""
+
+    state: StudioState
+    solution: pipeline.Solution | None
+    error: str | None
+    downloads: list[tuple[str, bytes]]
+
+    def send_file(self, client: Any, name: str, data: bytes) -> None:
+        """Download ``data`` as ``name`` in ``client``'s page (kept in ``downloads``)."""
+        self.downloads.append((name, data))
+        del self.downloads[:-10]
+        if client is not None:
+            client.send_file_download(name, data, save_immediately=True)
+
+    def download_design(self, event: Any) -> None:
+        design = self.state.design
+        data = json.dumps(design_mod.design_to_dict(absolute_mesh(design)), indent=2) + "\n"
+        self.send_file(event.client, f"{slug(design.name)}.json", data.encode("utf-8"))
+
+    def download_export(self, event: Any) -> None:
+        sol = self.solution
+        if sol is None:
+            self.notify("Nothing to export", self.error or "no solution yet", error=True)
+            return
+        if self.error:
+            self.notify("Exporting the last valid design", self.error, error=True)
+        for name, data in export_files(sol):
+            self.send_file(event.client, name, data)
+
+    def download_animation(self, event: Any) -> None:
+        try:
+            if self.solution is None:
+                raise ValueError(self.error or "no solution yet")
+            name, data = animation_file(self.solution)
+        except ValueError as exc:
+            self.notify("Nothing to animate", str(exc), error=True)
+            return
+        self.send_file(event.client, name, data)
+
+    def upload_design(self, event: Any) -> None:
+        upload = event.target.value
+        try:
+            try:
+                data = json.loads(upload.content.decode("utf-8"))
+            except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+                raise DesignFileError("file", f"not valid JSON ({exc})") from exc
+            design = design_mod.design_from_dict(data)
+        except DesignFileError as exc:
+            self.notify(f"Cannot load {upload.name}", f"{exc} (the design is unchanged)",
+                        error=True)
+            return
+        try:
+            design = find_mesh(design, (self.state.design.base_dir, str(EXAMPLES)))
+        except DesignFileError as exc:
+            self.notify(f"Cannot load {upload.name}", f"{exc} (the design is unchanged)",
+                        error=True, cause="load")
+            return
+        # its own autosave: the opened file's one keeps that file's unsaved work
+        self.state.autosave_path = autosave_path_for(None, f"upload-{Path(upload.name).stem}")
+        self.state.commit(design)
+        self.reframe()
+        self.request(FULL, sync=True)
+        self.notify("Design loaded", upload.name, cause="load")
