@@ -10,7 +10,7 @@ import pytest
 
 from paraloop_core import design, pipeline
 from paraloop_core.algebra import dq, poly
-from paraloop_core.linkage import drive, loops
+from paraloop_core.linkage import drive, loops, schedule
 from tests.independent.generic_designs import random_design
 
 DESIGNS = Path(__file__).resolve().parents[1] / "assets" / "designs"
@@ -135,7 +135,7 @@ def test_recommend_motor_rule_and_penalty():
                        [drive.smooth_drive_penalty(j) for j in batch])
 
 
-def check_schedule(jf: np.ndarray, s: drive.SpeedSchedule, ratio: float, acc: float) -> None:
+def check_schedule(jf: np.ndarray, s: schedule.SpeedSchedule, ratio: float, acc: float) -> None:
     """Limits, cycle time and continuity, re-derived from joint_rates (not from the gear code)."""
     m, ct = s.motor, s.cycle_time
     assert s.time[-1] == pytest.approx(ct, rel=1e-9) and np.all(np.diff(s.time) > 0)
@@ -156,7 +156,7 @@ def check_schedule(jf: np.ndarray, s: drive.SpeedSchedule, ratio: float, acc: fl
     assert dense.max() <= acc * (1 + 1e-5), dense.max() / acc
 
 
-def dense_accel(jf: np.ndarray, s: drive.SpeedSchedule, n: int = 64) -> np.ndarray:
+def dense_accel(jf: np.ndarray, s: schedule.SpeedSchedule, n: int = 64) -> np.ndarray:
     """Joint accelerations (6,) max over n points per step: omega^2 linear in the motor
     angle within a step, joint speeds from joint_rates, time integrated in closed form."""
     m, x = s.motor, s.motor_speed**2
@@ -188,12 +188,12 @@ def test_schedule_meets_limits_on_bundled_examples(name):
     worst = cs.peak_speed_ratio.max()
     ratio, acc = worst / 2, cs.peak_accel.max()
     try:
-        s = drive.speed_schedule(jf, m, ct, ratio, acc)
-    except drive.InfeasibleScheduleError as err:  # half the constant-speed ratio is too tight
+        s = schedule.speed_schedule(jf, m, ct, ratio, acc)
+    except schedule.InfeasibleScheduleError as err:  # half the constant-speed ratio is too tight
         assert np.isinf(err.min_cycle_time) and ratio < err.min_speed_ratio < worst
         assert "must exceed" in str(err)
         ratio = 0.5 * (err.min_speed_ratio + worst)
-        s = drive.speed_schedule(jf, m, ct, ratio, acc)
+        s = schedule.speed_schedule(jf, m, ct, ratio, acc)
     check_schedule(jf, s, ratio, acc)
     assert s.achieved_speed_ratio.max() < worst  # smoother than at constant speed
     assert s.fastest_cycle_time <= ct
@@ -205,17 +205,18 @@ def test_infeasible_schedule_names_a_working_cycle_time():
         cs = drive.constant_speed(jf, m, ct)
         ratio = 0.7 * cs.peak_speed_ratio.max()
         acc = cs.peak_accel.max() / (10 * cs.peak_speed_ratio.max()**2)  # too small for 10 s
-        with pytest.raises(drive.InfeasibleScheduleError, match="smallest cycle time") as info:
-            drive.speed_schedule(jf, m, ct, ratio, acc)
+        with pytest.raises(schedule.InfeasibleScheduleError, match="smallest cycle time") as info:
+            schedule.speed_schedule(jf, m, ct, ratio, acc)
         err = info.value
         assert err.min_cycle_time > ct and f"{err.min_cycle_time:.9g}" in str(err)
-        check_schedule(jf, drive.speed_schedule(jf, m, err.min_cycle_time, ratio, acc), ratio, acc)
-        with pytest.raises(drive.InfeasibleScheduleError):  # and it is the smallest one
-            drive.speed_schedule(jf, m, err.min_cycle_time * (1 - 1e-5), ratio, acc)
+        s = schedule.speed_schedule(jf, m, err.min_cycle_time, ratio, acc)
+        check_schedule(jf, s, ratio, acc)
+        with pytest.raises(schedule.InfeasibleScheduleError):  # and it is the smallest one
+            schedule.speed_schedule(jf, m, err.min_cycle_time * (1 - 1e-5), ratio, acc)
         need = err.accel_needed  # the accel limit named for the requested cycle time works
-        check_schedule(jf, drive.speed_schedule(jf, m, ct, ratio, need), ratio, need)
-        with pytest.raises(drive.InfeasibleScheduleError):
-            drive.speed_schedule(jf, m, ct, ratio, need * (1 - 1e-5))
+        check_schedule(jf, schedule.speed_schedule(jf, m, ct, ratio, need), ratio, need)
+        with pytest.raises(schedule.InfeasibleScheduleError):
+            schedule.speed_schedule(jf, m, ct, ratio, need * (1 - 1e-5))
 
 
 def potential(jf, t, mass, centers, g_base, rest=0):
@@ -292,8 +293,8 @@ def test_bad_input_raises_value_error():
         (lambda: drive.constant_speed(jf, 0, 1.0, samples=3), "samples"),
         (lambda: drive.recommend_motor(jf, 7), "resting_link"),
         (lambda: drive.smooth_drive_penalty(jf, motor=-1), "motor"),
-        (lambda: drive.speed_schedule(jf, 0, 1.0, 0.0, 1.0), "max_speed_ratio"),
-        (lambda: drive.speed_schedule(jf, 0, 1.0, 2.0, np.inf), "max_accel"),
+        (lambda: schedule.speed_schedule(jf, 0, 1.0, 0.0, 1.0), "max_speed_ratio"),
+        (lambda: schedule.speed_schedule(jf, 0, 1.0, 2.0, np.inf), "max_accel"),
         (lambda: drive.motor_torque(jf, 0, np.ones(5), np.zeros((6, 3))), "masses_kg"),
         (lambda: drive.motor_torque(jf, 0, -np.ones(6), np.zeros((6, 3))), "masses_kg"),
         (lambda: drive.motor_torque(jf, 0, np.ones(6), np.zeros((6, 3)),
@@ -304,5 +305,5 @@ def test_bad_input_raises_value_error():
     for call, words in cases:
         with pytest.raises(ValueError, match=words):
             call()
-    with pytest.raises(drive.InfeasibleScheduleError, match="no cycle time works"):
-        drive.speed_schedule(jf, 1, 1.0, 1.0, 1.0)  # a ratio of 1 is impossible here
+    with pytest.raises(schedule.InfeasibleScheduleError, match="no cycle time works"):
+        schedule.speed_schedule(jf, 1, 1.0, 1.0, 1.0)  # a ratio of 1 is impossible here

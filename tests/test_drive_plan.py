@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 
 from paraloop_core import design, pipeline
 from paraloop_core.design import DriveSettings
-from paraloop_core.linkage import drive, drive_plan
+from paraloop_core.linkage import drive, drive_plan, schedule
 from tests.test_drive import BUNDLED, DESIGNS, bundled, generic
 
 RTOL = 1e-9  # speed_schedule holds its limits to this
@@ -30,8 +30,8 @@ def _meets_limits(plan: drive_plan.DrivePlan) -> None:
 
 def _least_ratio(jf: np.ndarray, motor: int) -> float:
     """R0: the ratio no acceleration can beat (named by the infeasibility error)."""
-    with pytest.raises(drive.InfeasibleScheduleError) as info:
-        drive.speed_schedule(jf, motor, 10.0, 1.0, 1.0)
+    with pytest.raises(schedule.InfeasibleScheduleError) as info:
+        schedule.speed_schedule(jf, motor, 10.0, 1.0, 1.0)
     return info.value.min_speed_ratio
 
 

@@ -16,7 +16,6 @@ import numpy as np
 from numpy.polynomial import polynomial as npoly
 
 from paraloop_core.algebra import dq, poly
-from paraloop_core.errors import ParaloopError
 from paraloop_core.linkage import loops
 from paraloop_core.tolerance import TOL
 
@@ -24,26 +23,8 @@ TWO_PI = 2.0 * np.pi
 #: A joint of the resting link stays the motor unless another joint's worst peak speed ratio
 #: is smaller by more than this factor (a grounded motor needs no moving cables).
 PREFER_FACTOR = 1.5
-SAMPLES = 256  #: default samples per cycle of each sample family (:func:`_motor_angles`)
-_REFINE = 0.25  # schedule steps keep Delta |g'/g| <= this: TOPP's step maps stay increasing
-_RTOL = 1e-9  # limits and cycle time hold to this (rounding of the final scaling)
-_SWEEPS = 60  # periodic passes of the schedule recursions (2 sufficed in all tests)
-#: The schedule bounds accelerations at 3 points per step with this margin; between them they
-#: vary by O(step^2) (measured <= 8e-4 relative), and :data:`DENSE` points per step check it.
-ACCEL_MARGIN = 0.01
-DENSE = 33  #: points per schedule step where achieved accelerations are evaluated
+SAMPLES = 256  #: default samples per cycle of each sample family (:func:`motor_angles`)
 _CHAIN = np.where(np.arange(6)[:, None] <= 3, np.tri(6, k=-1), -np.tri(6).T)  # link_poses
-
-
-class InfeasibleScheduleError(ParaloopError):
-    """No motor profile meets the limits: ``min_cycle_time`` (s), ``accel_needed`` (rad/s^2 for
-    the requested cycle time, same ratio), ``min_speed_ratio`` (needed to exceed); inf: none."""
-
-    reason = "infeasible-schedule"
-
-    def __init__(self, message: str, tmin: float, need: float, ratio: float):
-        super().__init__(message)
-        self.min_cycle_time, self.accel_needed, self.min_speed_ratio = tmin, need, ratio
 
 
 @dataclass(frozen=True)
@@ -72,23 +53,6 @@ class MotorChoice:
 
 
 @dataclass(frozen=True)
-class SpeedSchedule:
-    """See :func:`speed_schedule`; node arrays ``(N+1,)`` / ``(N+1, 6)``, theta 0 .. 2 pi."""
-
-    motor: int
-    cycle_time: float
-    theta: np.ndarray  # rad; the last node closes the cycle
-    t: np.ndarray
-    time: np.ndarray  # s, 0 .. cycle_time
-    motor_speed: np.ndarray  # rad/s > 0, last = first
-    velocity: np.ndarray  # joint velocities, rad/s
-    acceleration: np.ndarray  # rad/s^2 in the step starting at the node (last row = first)
-    achieved_speed_ratio: np.ndarray  # (6,) max|v_j| / (2 pi / cycle_time)
-    achieved_accel: np.ndarray  # (6,) max|a_j| at DENSE points per step
-    fastest_cycle_time: float  # s, of the fastest admissible profile (then slowed down)
-
-
-@dataclass(frozen=True)
 class MotorTorque:
     """See :func:`motor_torque`."""
 
@@ -100,7 +64,9 @@ class MotorTorque:
     moving_mass_kg: float  # every link but the resting one
 
 
-def _factors(jf: np.ndarray, batched: bool = False) -> tuple[np.ndarray, ...]:
+def norm_roots(jf: np.ndarray, batched: bool = False) -> tuple[np.ndarray, ...]:
+    """``(jf, a, b)``: checked loop ``(6, 8)`` (``(..., 6, 8)`` if ``batched``) and the norm
+    roots ``a +- i b`` ``(..., 6)`` of its factors (``b > 0``)."""
     jf = np.asarray(jf, dtype=np.float64)
     if jf.shape[-2:] != (6, 8) or (jf.ndim != 2 and not batched):
         raise ValueError(f"joint factors must have shape {'(..., 6, 8)' if batched else '(6, 8)'}"
@@ -113,14 +79,16 @@ def _factors(jf: np.ndarray, batched: bool = False) -> tuple[np.ndarray, ...]:
     return jf, jf[..., 0], b
 
 
-def _index(name: str, value: int, lo: int, hi: int) -> int:
+def check_index(name: str, value: int, lo: int, hi: int) -> int:
+    """``value`` as an int in ``lo..hi`` (no bool), else ValueError naming ``name``."""
     ok = isinstance(value, (int, np.integer)) and not isinstance(value, bool)
     if not (ok and lo <= value <= hi):
         raise ValueError(f"{name} must be an integer in {lo}..{hi}, got {value!r}")
     return int(value)
 
 
-def _positive(name: str, value: float) -> float:
+def check_positive(name: str, value: float) -> float:
+    """``value`` as a positive finite float, else ValueError naming ``name``."""
     v = float(value) if isinstance(value, (int, float, np.number)) else np.nan
     if not (np.isfinite(v) and v > 0):
         raise ValueError(f"{name} must be a positive finite number, got {value!r}")
@@ -137,7 +105,7 @@ def _array(name: str, x: np.ndarray, shape: tuple[int, ...] | None) -> np.ndarra
 def joint_rates(jf: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Exact ``dphi/dt`` and ``d2phi/dt2 = -4 s b (t - a) / D^2`` ``(T, 6)`` (rad per unit t,
     per t^2) of :func:`loops.joint_angles` at parameters ``t`` ``(T,)``; 0 at t = +-inf."""
-    _, a, b = _factors(jf)
+    _, a, b = norm_roots(jf)
     t = np.atleast_1d(np.asarray(t, dtype=np.float64))
     if t.ndim != 1 or np.isnan(t).any():
         raise ValueError(f"t must be a 1-D array without NaN, got shape {t.shape}")
@@ -148,7 +116,7 @@ def joint_rates(jf: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             np.where(fin, -4.0 * s * (b / h) * (u / h) / h**2, 0.0))
 
 
-def _gear(a: np.ndarray, b: np.ndarray, m: int, theta: np.ndarray) -> tuple[np.ndarray, ...]:
+def gear(a: np.ndarray, b: np.ndarray, m: int, theta: np.ndarray) -> tuple[np.ndarray, ...]:
     """``t`` ``(T,)``, ``g``, ``g'`` ``(T, 6)`` of motor m at motor angles ``theta`` ``(T,)``."""
     half = 0.5 * theta
     with np.errstate(divide="ignore"):  # theta = 0: home, t = -inf
@@ -177,7 +145,7 @@ def _ratio_critical(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def peak_speed_ratios(jf: np.ndarray) -> np.ndarray:
     """Exact ``max |g_j|`` ``(..., 6, 6)`` [motor, joint] of loops ``(..., 6, 8)``: joint j's
     peak over mean speed with motor m at constant speed (closed form, ~0.1 ms per call)."""
-    _, a, b = _factors(jf, batched=True)
+    _, a, b = norm_roots(jf, batched=True)
     s = _ratio_critical(a, b)
     am, bm, bj = a[..., :, None, None], b[..., :, None, None], b[..., None, :, None]
     fin = np.isfinite(s)
@@ -200,7 +168,7 @@ def _accel_critical(a: np.ndarray, b: np.ndarray, m: int) -> np.ndarray:
     return np.concatenate(out)
 
 
-def _motor_angles(a: np.ndarray, b: np.ndarray, m: int, n: int) -> np.ndarray:
+def motor_angles(a: np.ndarray, b: np.ndarray, m: int, n: int) -> np.ndarray:
     """Sorted motor angles ``(N,)`` in ``[0, 2 pi)``: ``2 pi k / n``; per norm root the t where
     its joints turn uniformly (``a + b cot(pi (k + 1/2) / n)``, :func:`poly.cycle_parameters`);
     every critical point of each ``g_j`` and ``g_j'``. So no joint turns more than ``2 pi / n``
@@ -215,17 +183,17 @@ def _motor_angles(a: np.ndarray, b: np.ndarray, m: int, n: int) -> np.ndarray:
 def constant_speed(jf: np.ndarray, motor: int, cycle_time: float, samples: int = SAMPLES,
                    theta: np.ndarray | None = None) -> ConstantSpeed:
     """Joint ``motor`` at constant ``omega = 2 pi / cycle_time`` (s): velocities ``g omega``,
-    accelerations ``g' omega^2`` at :func:`_motor_angles` (``samples`` per family) or at
+    accelerations ``g' omega^2`` at :func:`motor_angles` (``samples`` per family) or at
     ``theta`` (rad); peaks always from the adaptive samples (exact maxima over the cycle)."""
-    _, a, b = _factors(jf)
-    m, ct = _index("motor", motor, 0, 5), _positive("cycle_time", cycle_time)
-    grid = _motor_angles(a, b, m, _index("samples", samples, 8, 10**7))
-    t, g, gp = _gear(a, b, m, grid)
+    _, a, b = norm_roots(jf)
+    m, ct = check_index("motor", motor, 0, 5), check_positive("cycle_time", cycle_time)
+    grid = motor_angles(a, b, m, check_index("samples", samples, 8, 10**7))
+    t, g, gp = gear(a, b, m, grid)
     w = TWO_PI / ct
     peak_ratio, peak_acc = np.abs(g).max(0), np.abs(gp).max(0) * w * w
     if theta is not None:
         grid = _array("theta", theta, None)
-        t, g, gp = _gear(a, b, m, grid)
+        t, g, gp = gear(a, b, m, grid)
     return ConstantSpeed(m, ct, grid, t, g * w, gp * w * w, peak_ratio, peak_acc)
 
 
@@ -234,9 +202,9 @@ def recommend_motor(jf: np.ndarray, resting_link: int,
     """The motor joint minimising the worst peak speed ratio over all joints, preferring the
     resting (grounded) link's joints ``resting_link - 1``, ``resting_link`` (mod 6) unless
     another is better by more than ``prefer_factor``; ``reason`` says why in words."""
-    rest = _index("resting_link", resting_link, 0, 5)
-    factor = _positive("prefer_factor", prefer_factor)
-    ratios = peak_speed_ratios(_factors(jf)[0])
+    rest = check_index("resting_link", resting_link, 0, 5)
+    factor = check_positive("prefer_factor", prefer_factor)
+    ratios = peak_speed_ratios(norm_roots(jf)[0])
     worst = ratios.max(axis=1)
     pref = ((rest - 1) % 6, rest)
     bp, best = min(pref, key=lambda j: (worst[j], j)), int(np.argmin(worst))
@@ -257,154 +225,8 @@ def smooth_drive_penalty(jf: np.ndarray, motor: int | None = None) -> float | np
     """Worst peak speed ratio (>= 1; 1 = all joints turn uniformly) of ``motor``, else of the
     best motor, of loops ``(..., 6, 8)``: ``(...)``, a float for one loop (~0.1 ms per call)."""
     worst = peak_speed_ratios(jf).max(axis=-1)
-    out = worst.min(axis=-1) if motor is None else worst[..., _index("motor", motor, 0, 5)]
+    out = worst.min(axis=-1) if motor is None else worst[..., check_index("motor", motor, 0, 5)]
     return float(out) if np.ndim(out) == 0 else out
-
-
-def _schedule_grid(a: np.ndarray, b: np.ndarray, m: int, n: int) -> tuple[np.ndarray, ...]:
-    """nodes ``(N+1,)``; g, g' ``(2N+1, 6)`` (nodes, midpoints); q/p, 1/p ``(N, 18)``; pair; t."""
-    th = _motor_angles(a, b, m, n)
-    for _ in range(60):  # halve steps until Delta |g'/g| <= _REFINE (g_j never vanishes)
-        nodes = np.append(th, TWO_PI)
-        k, mids = len(th), 0.5 * (nodes[:-1] + nodes[1:])
-        t, g, gp = _gear(a, b, m, np.concatenate([nodes, mids]))
-        rel = np.abs(gp / g).max(axis=1)
-        bad = np.diff(nodes) * np.maximum.reduce([rel[:k], rel[1:k + 1], rel[k + 1:]]) > _REFINE
-        if not bad.any():
-            break
-        th = np.sort(np.concatenate([th, mids[bad]]))
-    # at x = (1 - lam) x_k + lam x_{k+1}, x' = (x_{k+1} - x_k) / Delta, the acceleration
-    # g' x + g x'/2 is sign(g) (p x_{k+1} - q x_k) with p, q >= |g| / (4 Delta) > 0
-    half = 0.5 / np.diff(nodes)[:, None, None]
-    gg = np.stack([g[:k], g[k + 1:], g[1:k + 1]], axis=1)
-    gq = np.stack([gp[:k], gp[k + 1:], gp[1:k + 1]], axis=1) * np.sign(gg)
-    lam = np.array([0.0, 0.5, 1.0])[:, None]
-    p = (np.abs(gg) * half + gq * lam).reshape(k, -1)
-    sig = (np.abs(gg) * half - gq * (1.0 - lam)).reshape(k, -1) / p
-    ds = sig[:, :, None] - sig[:, None, :]
-    with np.errstate(divide="ignore", invalid="ignore"):  # lo_i(x) <= hi_j(x) for all i, j
-        pair = np.where(ds > 0, (1.0 / p[:, :, None] + 1.0 / p[:, None, :]) / ds, np.inf)
-    return nodes, g, gp, sig, 1.0 / p, pair.min(axis=(1, 2)), t[: k + 1]
-
-
-def _caps(g: np.ndarray, v: float) -> np.ndarray:
-    """Caps on ``x = omega^2`` at nodes for joint speeds <= v (min over the neighbours)."""
-    c = v * v / (g**2).max(axis=1)
-    ext = np.concatenate([c[-2:-1], c[:-1], c[:2]])  # node N is node 0
-    return np.minimum(np.minimum(ext[:-2], ext[1:-1]), ext[2:])
-
-
-def _steps(nodes: np.ndarray, x: np.ndarray) -> np.ndarray:
-    return 2.0 * np.diff(nodes) / (np.sqrt(x[:-1]) + np.sqrt(x[1:]))  # exact, x linear per step
-
-
-def _fastest(gr: tuple[np.ndarray, ...], cap: np.ndarray, accel: float
-             ) -> tuple[np.ndarray, float]:
-    """Fastest admissible periodic ``x = omega^2`` ``(N+1,)`` and its time (s)."""
-    sig, eps = gr[3], accel * gr[4]
-    inv_s, eo, bound = 1.0 / sig, eps / sig, np.minimum(cap[:-1], accel * gr[5]).tolist()
-    n = len(bound)
-    beta, x = np.empty(n + 1), np.empty(n + 1)
-    end = bound[0]
-    for _ in range(_SWEEPS):  # scalar recursions: the one loop over samples
-        beta[n] = bk = end
-        for k in range(n - 1, -1, -1):
-            bk = beta[k] = min(bound[k], float((bk * inv_s[k] + eo[k]).min()))
-        if bk >= end * (1.0 - 1e-13):
-            break
-        end = bk
-    beta[0] = beta[n] = start = min(beta[0], end)
-    for _ in range(_SWEEPS):
-        x[0] = xk = start
-        for k in range(n):
-            xk = x[k + 1] = min(beta[k + 1], float((sig[k] * xk + eps[k]).min()))
-        if xk >= start * (1.0 - 1e-13):
-            break
-        start = xk
-    x[n] = x[0]
-    return x, float(_steps(gr[0], x).sum())
-
-
-def speed_schedule(jf: np.ndarray, motor: int, cycle_time: float, max_speed_ratio: float,
-                   max_accel: float, samples: int = SAMPLES) -> SpeedSchedule:
-    """Motor profile keeping every joint's speed <= ``max_speed_ratio * 2 pi / cycle_time`` and
-    |acceleration| <= ``max_accel`` (rad/s^2), cycle time exactly ``cycle_time`` (s): TOPP in
-    ``x = omega^2``, slowed down uniformly. Raises :class:`InfeasibleScheduleError`.
-
-    Accelerations are bounded at 3 points per step, :data:`ACCEL_MARGIN` below ``max_accel``,
-    then evaluated at :data:`DENSE` points per step; should they still exceed ``max_accel``
-    the bound is lowered by the excess and the profile recomputed (the times and limits an
-    error names are those of the bound used)."""
-    _, a, b = _factors(jf)
-    m, ct = _index("motor", motor, 0, 5), _positive("cycle_time", cycle_time)
-    ratio, user_acc = (_positive("max_speed_ratio", max_speed_ratio),
-                       _positive("max_accel", max_accel))
-    gr = _schedule_grid(a, b, m, _index("samples", samples, 8, 10**7))
-    nodes, g, gp, k = gr[0], gr[1], gr[2], len(gr[0])
-    acc = user_acc * (1.0 - ACCEL_MARGIN)
-    for _ in range(4):
-        x, fast = _fastest(gr, _caps(g[:k], ratio * TWO_PI / ct), acc)
-        if fast > ct * (1.0 + 1e-12):
-            _infeasible(gr, m, ct, ratio, user_acc, acc, fast)
-        x = x * (fast / ct) ** 2
-        got_acc = _dense_accel(a, b, m, nodes, x)
-        if got_acc.max() <= user_acc * (1 + _RTOL):
-            break
-        acc *= user_acc / got_acc.max() * (1.0 - ACCEL_MARGIN)
-    else:
-        raise RuntimeError("speed schedule violates its acceleration limit (bug)")
-    w, slope = np.sqrt(x), (0.5 * np.diff(x) / np.diff(nodes))[:, None]  # domega/dtime
-    vel = g[:k] * w[:, None]
-    got_ratio = np.abs(vel).max(0) / (TWO_PI / ct)
-    if got_ratio.max() > ratio * (1 + _RTOL):
-        raise RuntimeError("speed schedule violates its speed limit (bug)")
-    return SpeedSchedule(m, ct, nodes, gr[6],
-                         np.concatenate([[0.0], np.cumsum(_steps(nodes, x))]), w, vel,
-                         np.concatenate([gp[:k - 1] * x[:-1, None] + g[:k - 1] * slope,
-                                         gp[:1] * x[:1, None] + g[:1] * slope[:1]]),
-                         got_ratio, got_acc, fast)
-
-
-def _infeasible(gr: tuple[np.ndarray, ...], m: int, ct: float, ratio: float, user_acc: float,
-                acc: float, fast: float) -> None:
-    """Raise :class:`InfeasibleScheduleError` for limits ``ratio``, ``user_acc`` (applied as
-    the bound ``acc``) whose fastest profile takes ``fast`` > ``ct`` s, naming what works."""
-    # caps scale with the mean speed, so T with accel A is the T = 1 problem with accel A T^2,
-    # fastest time decreasing in it: log bisection
-    nodes, g, k = gr[0], gr[1], len(gr[0])
-    head = (f"no motor-{m} speed schedule meets max_speed_ratio {ratio:g} and max_accel "
-            f"{user_acc:g} rad/s^2 in {ct:g} s (the fastest admissible profile takes "
-            f"{fast:.6g} s)")
-    cap1 = _caps(g[:k], ratio * TWO_PI)
-    at_cap = float(_steps(nodes, cap1).sum())  # time with unlimited acceleration
-    if at_cap >= 1.0 - 1e-9:
-        raise InfeasibleScheduleError(
-            f"{head}; no cycle time works: max_speed_ratio must exceed {ratio * at_cap:.6g}"
-            " (the cycle mean of the largest joint gear ratio)", np.inf, np.inf, ratio * at_cap)
-    lo = hi = acc * ct * ct
-    while _fastest(gr, cap1, hi)[1] > 1.0:
-        lo, hi = hi, 4.0 * hi
-    while hi > lo * (1.0 + 1e-9):
-        mid = float(np.sqrt(lo * hi))
-        lo, hi = (mid, hi) if _fastest(gr, cap1, mid)[1] > 1.0 else (lo, mid)
-    tmin = float(np.sqrt(hi / acc)) * (1 + 1e-9)
-    need = hi / ct**2 * (user_acc / acc) * (1 + 1e-9)
-    raise InfeasibleScheduleError(
-        f"{head}; the smallest cycle time that works for these limits is {tmin:.9g} s; for "
-        f"{ct:g} s use max_accel >= {need:.6g} rad/s^2, or max_speed_ratio "
-        f"{ratio * fast / ct:.6g} with max_accel {user_acc * (fast / ct) ** 2:.6g} rad/s^2",
-        tmin, need, ratio * at_cap)
-
-
-def _dense_accel(a: np.ndarray, b: np.ndarray, m: int, nodes: np.ndarray, x: np.ndarray
-                 ) -> np.ndarray:
-    """``max |g_j' x + g_j x'/2|`` ``(6,)`` at :data:`DENSE` points per step (x linear)."""
-    lam = np.linspace(0.0, 1.0, DENSE)
-    delta = np.diff(nodes)
-    _, g, gp = _gear(a, b, m, (nodes[:-1, None] + delta[:, None] * lam).ravel())
-    xs = (x[:-1, None] * (1.0 - lam) + x[1:, None] * lam).ravel()[:, None]
-    slope = np.repeat(0.5 * np.diff(x) / delta, DENSE)[:, None]
-    return np.abs(gp * xs + g * slope).max(axis=0)
 
 
 def motor_torque(jf: np.ndarray, motor: int, masses_kg: np.ndarray, centers_home_m: np.ndarray,
@@ -417,10 +239,10 @@ def motor_torque(jf: np.ndarray, motor: int, masses_kg: np.ndarray, centers_home
     in its frame); link masses ``(6,)``, centres ``(6, 3)`` (m, base frame, home);
     ``T_world_base`` 4x4 or dual quaternion (8,): the resting link's home frame in the world,
     None = identity; ``length_unit_m``: metres per length unit of ``jf``. At
-    :func:`_motor_angles` or ``theta``; see docs/realization.md."""
-    _, a, b = _factors(jf)
-    m, unit = _index("motor", motor, 0, 5), _positive("length_unit_m", length_unit_m)
-    rest = _index("resting_link", resting_link, 0, 5)
+    :func:`motor_angles` or ``theta``; see docs/realization.md."""
+    _, a, b = norm_roots(jf)
+    m, unit = check_index("motor", motor, 0, 5), check_positive("length_unit_m", length_unit_m)
+    rest = check_index("resting_link", resting_link, 0, 5)
     mass = _array("masses_kg", masses_kg, (6,))
     if (mass < 0).any():
         raise ValueError("masses_kg must be >= 0")
@@ -431,9 +253,9 @@ def motor_torque(jf: np.ndarray, motor: int, masses_kg: np.ndarray, centers_home
     if np.abs(r @ r.T - np.eye(3)).max() > TOL.orthonormal or np.linalg.det(r) < 0:
         raise ValueError("T_world_base must be a rigid motion (its rotation is not proper)")
     g_base = r.T @ _array("gravity_world", gravity_world, (3,))
-    th = (_motor_angles(a, b, m, _index("samples", samples, 8, 10**7)) if theta is None
+    th = (motor_angles(a, b, m, check_index("samples", samples, 8, 10**7)) if theta is None
           else _array("theta", theta, None))
-    t, g, _ = _gear(a, b, m, th)
+    t, g, _ = gear(a, b, m, th)
     poses = loops.link_poses(jf, t)
     c = dq.transform_points(poses,  # (T, 6, 3) in the units of jf
                             _array("centers_home_m", centers_home_m, (6, 3)) / unit)

@@ -16,7 +16,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from paraloop_core.linkage import drive
+from paraloop_core.linkage import drive, schedule
 
 TWO_PI = 2.0 * np.pi
 SEARCH_SAMPLES = 32  #: samples per family of the coarse grid the chosen limits are searched on
@@ -53,7 +53,7 @@ class DrivePlan:
     max_accel_rad_s2: float | None  # None (chosen): no acceleration makes the ratio work
     speed_ratio_chosen_by: str
     accel_chosen_by: str
-    schedule: drive.SpeedSchedule | None  # None when infeasible (see error)
+    schedule: schedule.SpeedSchedule | None  # None when infeasible (see error)
     error: str | None  # why there is no schedule and what would work
     torque: drive.MotorTorque | None  # when masses are given
     density_kg_m3: float
@@ -70,14 +70,15 @@ class _Coarse:
     speed caps scale with the mean speed, so cycle time T with accel A is this with A T^2."""
 
     def __init__(self, jf: np.ndarray, m: int):
-        _, a, b = drive._factors(jf)
-        self.grid = drive._schedule_grid(a, b, m, SEARCH_SAMPLES)
+        _, a, b = drive.norm_roots(jf)
+        self.grid = schedule.schedule_grid(a, b, m, SEARCH_SAMPLES)
         self.g = self.grid[1][: len(self.grid[0])]
-        self.min_ratio = float(drive._steps(self.grid[0], drive._caps(self.g, TWO_PI)).sum())
+        caps = schedule.speed_caps(self.g, TWO_PI)
+        self.min_ratio = float(schedule.step_times(self.grid[0], caps).sum())
 
     def time(self, ratio: float, accel: float) -> float:
         """Fastest admissible cycle time."""
-        return drive._fastest(self.grid, drive._caps(self.g, ratio * TWO_PI), accel)[1]
+        return schedule.fastest(self.grid, schedule.speed_caps(self.g, ratio * TWO_PI), accel)[1]
 
     def least_accel(self, ratio: float) -> float:
         """An acceleration within ``_BRACKET`` above the least that makes ``ratio`` feasible
@@ -121,15 +122,15 @@ def _check(settings: DriveSettingsLike) -> tuple[int | None, float, Any, Any, fl
         raise ValueError(f"settings must have the fields of design.DriveSettings, got "
                          f"{type(settings).__name__}")
     motor = settings.motor
-    ct = drive._positive("cycle_time_s", settings.cycle_time_s)
+    ct = drive.check_positive("cycle_time_s", settings.cycle_time_s)
     ratio, acc = settings.max_speed_ratio, settings.max_accel_rad_s2
     if motor is not None:
-        drive._index("motor", motor, 0, 5)
-    if ratio is not None and drive._positive("max_speed_ratio", ratio) < 1.0:
+        drive.check_index("motor", motor, 0, 5)
+    if ratio is not None and drive.check_positive("max_speed_ratio", ratio) < 1.0:
         raise ValueError(f"max_speed_ratio must be >= 1 (or None), got {ratio!r}")
     if acc is not None:
-        drive._positive("max_accel_rad_s2", acc)
-    return motor, ct, ratio, acc, drive._positive("density_kg_m3", settings.density_kg_m3)
+        drive.check_positive("max_accel_rad_s2", acc)
+    return motor, ct, ratio, acc, drive.check_positive("density_kg_m3", settings.density_kg_m3)
 
 
 def plan_drive(joint_factors: np.ndarray, settings: DriveSettingsLike, resting_link: int = 0,
@@ -139,12 +140,12 @@ def plan_drive(joint_factors: np.ndarray, settings: DriveSettingsLike, resting_l
     """The drive of a loop ``joint_factors`` ``(6, 8)`` with ``settings`` (a
     ``design.DriveSettings``) and ``resting_link`` grounded: the motor (the settings', else
     :func:`drive.recommend_motor`), its constant-speed peaks, the schedule limits (null ones
-    chosen, see the module doc) and :func:`drive.speed_schedule`, or the reason it is
+    chosen, see the module doc) and :func:`schedule.speed_schedule`, or the reason it is
     infeasible; :func:`drive.motor_torque` when ``masses_kg`` ``(6,)`` and ``centers_home_m``
     ``(6, 3)`` are given (``length_unit_m``: metres per unit of the factors, None = 1).
     Raises ValueError only for invalid input."""
-    jf = drive._factors(joint_factors)[0]
-    rest = drive._index("resting_link", resting_link, 0, 5)
+    jf = drive.norm_roots(joint_factors)[0]
+    rest = drive.check_index("resting_link", resting_link, 0, 5)
     motor, ct, ratio, acc, density = _check(settings)
     if (masses_kg is None) != (centers_home_m is None):
         raise ValueError("give both masses_kg and centers_home_m, or neither")
@@ -183,14 +184,14 @@ def plan_drive(joint_factors: np.ndarray, settings: DriveSettingsLike, resting_l
 
 def _schedule(jf: np.ndarray, m: int, ct: float, ratio: float, acc: float,
               user: tuple[bool, bool], retry_ratio: bool
-              ) -> tuple[drive.SpeedSchedule | None, float, float | None, str | None]:
-    """``(schedule, ratio, accel, error)``: :func:`drive.speed_schedule`; chosen limits the
+              ) -> tuple[schedule.SpeedSchedule | None, float, float | None, str | None]:
+    """``(schedule, ratio, accel, error)``: :func:`schedule.speed_schedule`; chosen limits the
     full grid refuses (the coarse search is close, not exact) are raised to what it names."""
     error = ""
     for _ in range(4):
         try:
-            return drive.speed_schedule(jf, m, ct, ratio, acc), ratio, acc, None
-        except drive.InfeasibleScheduleError as exc:
+            return schedule.speed_schedule(jf, m, ct, ratio, acc), ratio, acc, None
+        except schedule.InfeasibleScheduleError as exc:
             error = str(exc)
             if not np.isfinite(exc.min_cycle_time):  # no acceleration makes the ratio work
                 if user[0] and user[1]:
