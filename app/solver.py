@@ -15,6 +15,16 @@ from paraloop_core.design import Design
 from paraloop_core.errors import RealizationError
 
 CACHE_SIZE = 16
+#: Work units of the release's realization search (about 0.05 ms each in the studio): when the
+#: warm start does not clear and this does not suffice, the full search (thinner bars, the
+#: whole budget) runs as a background job (:meth:`Solver.solve` with ``quick`` False).
+QUICK_WORK = 2500
+
+
+def incomplete(sol: pipeline.Solution) -> bool:
+    """Whether ``sol`` came from a quick search that found no realization (the full search
+    has not run yet)."""
+    return bool((sol.realization_report or {}).get("incomplete"))
 
 
 class Solver:
@@ -42,32 +52,36 @@ class Solver:
         (:meth:`solve` with ``full``) and replaces it only if it fits better."""
         if self._preview_fit is None or self._preview_fit[0] != self._key(design):
             return None
-        return self._full(design, dict(fit=self._preview_fit[1]))
+        return self._full(design, dict(fit=self._preview_fit[1]), quick=True)
 
-    def _full(self, design: Design, extra: dict) -> tuple[pipeline.Solution, str]:
+    def _full(self, design: Design, extra: dict, quick: bool = False,
+              check: Callable[[], None] | None = None) -> tuple[pipeline.Solution, str]:
         """A full update: the last preview's pattern and the last realization's are tried
-        first (certified like any answer), then the search."""
+        first (certified like any answer), then the search (``quick``: :data:`QUICK_WORK`
+        units on the design's own loop and bars; ``check`` may raise to stop it)."""
         pattern, self.preview = (None if self.preview is None else self.preview.pattern), None
         try:
             sol = pipeline.solve(design, other_loops=False, hint=self.realized,
-                                 pattern=pattern, **extra)
+                                 pattern=pattern, quick_work=QUICK_WORK if quick else None,
+                                 check=check, **extra)
             report = sol.realization_report or {}
             note = (f"No realization: {report.get('reason')}"
-                    if report.get("status") == "not_found" else "")
+                    if report.get("status") == "not_found" and not incomplete(sol) else "")
             return sol, note
         except RealizationError as exc:
             return pipeline.solve(design, realize=False, **extra), f"No realization: {exc}"
 
     def solve(self, design: Design, full: bool, current: pipeline.Solution | None,
-              progress: Callable[[float, str], None] | None = None
-              ) -> tuple[pipeline.Solution, str]:
+              progress: Callable[[float, str], None] | None = None, *, quick: bool = False,
+              check: Callable[[], None] | None = None) -> tuple[pipeline.Solution, str]:
         """``(solution, note)`` of ``design``; the note says why there is no realization.
 
         A preview (``full`` False) reuses ``current``'s mu instead of re-running a criterion's
         scan, refits a ``fit`` design from the fit on screen (one start), and moves the last
         realization along when the exact minima clear it (:attr:`preview`,
         :func:`pipeline.warm_preview`; certified only by the full update on release). The
-        studio keeps the user's loop: fallbacks only thin the bars."""
+        studio keeps the user's loop: fallbacks only thin the bars. A full update's ``quick``
+        search that finds nothing is not cached (:func:`incomplete`): the full search follows."""
         hint = self.realized
         key = self._key(design)
         if not full:
@@ -82,7 +96,10 @@ class Solver:
             self._preview_fit = None if sol.fit is None else (key, sol.fit)
             return sol, ""
         if key not in self._cache:
-            self.remember(design, *self._full(design, dict(progress=progress)))
+            sol, note = self._full(design, dict(progress=progress), quick, check)
+            if incomplete(sol):
+                return sol, note
+            self.remember(design, sol, note)
         self._cache.move_to_end(key)
         sol, note = self._cache[key]
         return dataclasses.replace(sol, design=design), note

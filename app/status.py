@@ -43,7 +43,8 @@ def status_line(sol: pipeline.Solution, *, full: bool, ms: float, note: str, gho
     """The status after drawing ``sol``: a full update or a preview (``moved``: it shows the
     last realization moved along), ``note`` why there is no realization ('' if there is one),
     ``ghost`` the last realized linkage shown faint, ``refine_starts`` the starts of the
-    multi-start fit that follows a quick one (None: none follows)."""
+    multi-start fit that follows a quick one (0: the full realization search follows a quick
+    one that found nothing; None: nothing follows)."""
     if full and not note:
         note = realization_note(sol)
     elif note and ghost:
@@ -51,11 +52,17 @@ def status_line(sol: pipeline.Solution, *, full: bool, ms: float, note: str, gho
     if not full and moved:
         note = "Linkage: the last realization moved along, its minima checked exactly; " \
                "certified collision-free on release."
-    if refine_starts is not None:
+    searching = full and sol.realization is None and refine_starts is not None
+    if refine_starts:
         note += (f" Motion: the drag's one-start fit; refining it with {refine_starts} starts "
                  "in the background.")
+    if searching:
+        note += (" Realization: none found by the quick search; the full search (deeper "
+                 "shifts, thinner bars) runs in the background (Cancel job stops it).")
     # "ok" only when there is a loop to show (or none was asked for)
     word = "⚠ no collision-free realization" if full and sol.realization is None and \
         sol.design.realization.enabled else "ok"
+    if searching:
+        word = "⚠ searching for a collision-free realization"
     kind = "full update" if full else "preview"
     return f"**Status:** {word} ({kind} {ms:.0f} ms). {note}{scale_warning(sol.design)}"

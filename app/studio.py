@@ -34,7 +34,7 @@ from app.panels.fabrication import FabricationPanel
 from app.plots import Plots
 from app.restore import RestoreOffer, offer_restore
 from app.scene import SceneView, design_scale
-from app.solver import Solver
+from app.solver import Solver, incomplete
 from app.state import StudioState, autosave_path_for, rescaled
 from app.status import scale_warning, status_line, unit_factor
 from app.worker import FRAME, FULL, PREVIEW, REFINE, NewestWorker
@@ -217,28 +217,35 @@ class Studio(FileTransfers):
     def _solve(self, design: Design, level: int) -> tuple[pipeline.Solution, str]:
         """:meth:`Solver.solve`. A fit design's full update takes the fit of its last drag
         preview (:meth:`Solver.quick_fit`) and asks for ``REFINE``: the multi-start fit, run
-        as a long job (progress, *Cancel job*), shown only if it fits better."""
-        full = level >= FULL
-        if not (full and design.motion.method == "fit"):
-            return self.solver.solve(design, full, self.solution)
-        version = self.state.version
+        as a long job (progress, *Cancel job*), shown only if it fits better. A full update
+        whose quick realization search finds nothing asks for ``REFINE`` too: the full
+        search, as a job (*Cancel job*; superseded by any edit)."""
+        if level < FULL:
+            return self.solver.solve(design, False, self.solution)
+        version, fit = self.state.version, design.motion.method == "fit"
         if level == FULL:
-            quick = self.solver.quick_fit(design)
+            quick = (self.solver.quick_fit(design) if fit else
+                     self.solver.solve(design, True, self.solution, quick=True))
             if quick is not None:
-                self._refine_for = version
+                if fit or incomplete(quick[0]):
+                    self._refine_for = version
                 return quick
         shown = self.solution
 
-        def progress(fraction: float, message: str) -> None:
+        def check() -> None:
             self.jobs.check()
-            if self.state.version != version:  # a newer edit supersedes this fit
+            if self.state.version != version:  # a newer edit supersedes this job
                 raise Cancelled(by_user=False)
+
+        def progress(fraction: float, message: str) -> None:
+            check()
             self.panels.status.content = f"**Status:** fitting: {message} " \
                                          f"({100 * fraction:.0f} %)"
 
-        with self.jobs.running("fit"):
-            sol, note = self.solver.solve(design, full, self.solution, progress)
-        if level == REFINE and shown is not None and shown.fit is not None \
+        with self.jobs.running("fit" if fit else "realization search"):
+            sol, note = self.solver.solve(design, True, self.solution,
+                                          progress if fit else None, check=check)
+        if fit and level == REFINE and shown is not None and shown.fit is not None \
                 and shown.fit.cost <= sol.fit.cost:  # the drag's fit stays: it fits better
             sol, note = dataclasses.replace(shown, design=design), ""
             self.solver.remember(design, sol, note)
@@ -253,9 +260,12 @@ class Studio(FileTransfers):
         except Cancelled as exc:
             if exc.by_user:  # keep the last valid solution
                 self._drawn = (version, level)
-                self.panels.status.content = "**Status:** ⚠ fit cancelled (the last valid " \
-                                             "design is shown; edit the design to fit again)"
-                self.notify("Fit cancelled", "stopped as you asked", cause="job")
+                what = "fit" if design.motion.method == "fit" else "realization search"
+                self.panels.status.content = f"**Status:** ⚠ {what} cancelled (the last " \
+                                             "valid result is shown; edit the design to " \
+                                             "start again)"
+                self.notify(f"{what.capitalize()} cancelled", "stopped as you asked",
+                            cause="job")
             return  # else a newer edit is pending and supersedes it
         except ValueError as exc:  # ParaloopError and other bad input
             self.error = str(exc)
@@ -289,7 +299,8 @@ class Studio(FileTransfers):
             self.fabrication.mark_stale(sol)
         refine = None
         if self._refine_for == version:
-            refine = evolution_settings(design.evolution).starts
+            refine = (evolution_settings(design.evolution).starts
+                      if design.motion.method == "fit" else 0)
             self.worker.request(REFINE)
         self.panels.status.content = status_line(
             dataclasses.replace(sol, design=design), full=full, ms=ms, note=note,

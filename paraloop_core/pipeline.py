@@ -134,7 +134,8 @@ def _criterion_params(design: Design, unit: float) -> dict[str, Any]:
 def solve(design: Design, *, realize: bool = True, other_loops: bool = True,
           progress: Callable[[float, str], None] | None = None,
           hint: Solution | None = None, fit: Any = None,
-          pattern: tuple[np.ndarray, np.ndarray] | None = None) -> Solution:
+          pattern: tuple[np.ndarray, np.ndarray] | None = None,
+          quick_work: int | None = None, check: Callable[[], None] | None = None) -> Solution:
     """Compute the solution of a design; raises ParaloopError subclasses (ValueError) with a
     clear message for degenerate poses, non-generic motions or impossible realization
     parameters. A realization that is not found is not an error: the solution then carries
@@ -147,7 +148,10 @@ def solve(design: Design, *, realize: bool = True, other_loops: bool = True,
     first evolution start. ``fit``: an :class:`evolution.FitResult` already computed for this
     design's targets (the studio's drag preview), used instead of running the evolution.
     ``pattern``: shifts and offsets (a drag preview's, :class:`WarmPreview`) tried first, like
-    ``hint``'s and certified as any answer.
+    ``hint``'s and certified as any answer. ``quick_work``: search only the design's own loop
+    and parameters, within this many work units; a miss is reported ``not_found`` with
+    ``incomplete: True`` (the studio's release; the full search follows in the background).
+    ``check()`` is called between search candidates and may raise to stop.
 
     The motion (four-pose; a fit's is converted), its factorizations, loops and singularity
     are computed in :func:`unit_length` from the targets put on the :func:`on_unit_grid`, and
@@ -184,7 +188,8 @@ def solve(design: Design, *, realize: bool = True, other_loops: bool = True,
                    s_min, s_t, fit=fit, unit=unit, loop_factors_unit=jf_u)
     if realize and design.realization.enabled:
         warm = warm_realization(sol, hint, pattern)
-        sol = warm if warm is not None else _with_realization(sol, other_loops)
+        sol = warm if warm is not None else _with_realization(sol, other_loops, quick_work,
+                                                              check)
     return sol
 
 
@@ -318,17 +323,20 @@ def _attempts(sol: Solution, other_loops: bool) -> list[tuple[int, float, float]
             + [(k, 1.0, 1.0) for k in order[1:]] + [(k, *_THIN) for k in order])
 
 
-def _with_realization(sol: Solution, other_loops: bool) -> Solution:
+def _with_realization(sol: Solution, other_loops: bool, quick_work: int | None = None,
+                      check: Callable[[], None] | None = None) -> Solution:
     """The first realization of :func:`_attempts` (``status: found``; the solution's loop is
-    the realized one), or the solution with a ``not_found`` report (reason, attempts)."""
+    the realized one), or the solution with a ``not_found`` report (reason, attempts); with
+    ``quick_work`` only the first attempt, within that budget (see :func:`solve`)."""
     from paraloop_core.realization import realize as realize_mod
 
     tried: list[dict[str, Any]] = []
-    for n, (loop, rho_f, d_f) in enumerate(_attempts(sol, other_loops)):
+    attempts = _attempts(sol, other_loops)[:1 if quick_work is not None else None]
+    for n, (loop, rho_f, d_f) in enumerate(attempts):
         attempt = replace(sol, design=replace(sol.design, loop=loop))
         jf, in_unit = sol.search_factors(loop)
-        params = dict(_params(sol, rho_f, d_f), in_unit=in_unit,
-                      budget=FALLBACK_WORK if n else FIRST_ATTEMPT_WORK)
+        budget = quick_work or (FALLBACK_WORK if n else FIRST_ATTEMPT_WORK)
+        params = dict(_params(sol, rho_f, d_f), in_unit=in_unit, budget=budget, check=check)
         try:
             if sol.design.end_effector is None:
                 real = realize_mod.realize(jf, **params)
@@ -352,6 +360,11 @@ def _with_realization(sol: Solution, other_loops: bool) -> Solution:
                       f"realized; realized loop {loop} with rho x{rho_f:g}, d x{d_f:g}")}
         return replace(attempt, realization=real, end_effector=ee, realization_report=report)
     last = tried[-1] if tried else {"message": "no attempt"}
+    if quick_work is not None:
+        return replace(sol, realization_report={
+            "status": "not_found", "attempts": tried, "incomplete": True,
+            "reason": f"not found in a quick search ({quick_work} work units, the design's "
+                      f"own loop and bars); last: {last['message']}"})
     closest = float(np.max(sol.singularity))
     near = "" if not closest < NEAR_SINGULAR else (
         f"every one of the nine loops comes within S = {closest:.1e} of a singular "

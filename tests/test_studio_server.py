@@ -140,11 +140,13 @@ def test_locked_pose_ignores_drags(studio):
 
 def test_status_is_not_ok_without_a_realization(studio, monkeypatch):
     """A solved design whose loop is not realized: the status says so, not "ok"."""
+    from app import solver as solver_mod
     from paraloop_core import pipeline
 
     monkeypatch.setattr(pipeline, "FIRST_ATTEMPT_WORK", 1)
     monkeypatch.setattr(pipeline, "FALLBACK_WORK", 1)
     monkeypatch.setattr(pipeline, "PREVIEW_WORK", 1)  # no pattern from a drag preview either
+    monkeypatch.setattr(solver_mod, "QUICK_WORK", 1)
     p = studio.state.design.poses[3]
     gizmo(studio, 3, position=np.asarray(p.position) + 0.013)
     assert studio.solution.realization is None and studio.error is None
@@ -421,3 +423,48 @@ def test_every_example_opens(path):
     finally:
         app.close()
         server.stop()
+
+
+def test_a_release_the_quick_search_misses_is_searched_fully_in_the_background(
+        studio, monkeypatch):
+    """The release draws at once (status: searching) and the full search, a job, then
+    delivers the certified realization; an edit during the search supersedes it."""
+    from app import solver as solver_mod
+    from paraloop_core import pipeline
+
+    monkeypatch.setattr(pipeline, "PREVIEW_WORK", 1)
+    monkeypatch.setattr(solver_mod, "QUICK_WORK", 1)
+    lines = []
+    real = studio_mod.status_line
+    monkeypatch.setattr(studio_mod, "status_line",
+                        lambda sol, **kw: lines.append(real(sol, **kw)) or lines[-1])
+    refined = len(studio.timings[studio_mod.REFINE])
+    p = studio.state.design.poses[3]
+    gizmo(studio, 3, position=np.asarray(p.position) + 0.3)  # too far for the warm start
+    assert any("searching for a collision-free realization" in s for s in lines)
+    assert len(studio.timings[studio_mod.REFINE]) == refined + 1
+    sol = studio.solution
+    assert sol.realization is not None and "**Status:** ok" in studio.panels.status.content
+    assert sol.realization.certified_clearance >= 2 * sol.realization.radius
+    assert not sol.realization_report.get("incomplete")
+    # cached once complete: undo and redo return it without a search
+    click(studio.panels.undo)
+    settle(studio)
+    click(studio.panels.redo)
+    settle(studio)
+    assert studio.solution.realization is sol.realization
+    # a job superseded by an edit: the check raises as soon as the design changes
+    checks = []
+
+    def slow_solve(design, *args, check=None, **kw):
+        checks.append(check)
+        if check is not None:
+            studio.state.version += 1  # what an edit during the search does
+            check()
+        return orig(design, *args, check=check, **kw)
+
+    orig = studio.solver.solve
+    monkeypatch.setattr(studio.solver, "solve", slow_solve)
+    gizmo(studio, 3, position=np.asarray(p.position) - 0.3)
+    assert any(c is not None for c in checks)  # the job ran, was stopped, drew nothing
+    assert "searching for a collision-free realization" in studio.panels.status.content

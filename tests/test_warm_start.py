@@ -148,3 +148,27 @@ def test_consecutive_bar_bounds_are_computed_on_demand_and_sound(tv8):
     # sound: never above the sampled distance of the two consecutive bars over the cycle
     rep = check_result(pipeline.result_to_dict(sol))
     assert rep["status"] == "checked" and not rep["disagreements"], rep["disagreements"]
+
+
+def test_a_quick_search_reports_itself_incomplete_and_check_can_stop_a_search(tv8):
+    design, _ = tv8
+    quick = pipeline.solve(design, other_loops=False, quick_work=1)
+    rep = quick.realization_report
+    assert quick.realization is None and rep["status"] == "not_found" and rep["incomplete"]
+    assert len(rep["attempts"]) == 1 and rep["attempts"][0]["reason"] == "budget"
+    enough = pipeline.solve(design, other_loops=False, quick_work=10**6)
+    assert enough.realization is not None and "incomplete" not in enough.realization_report
+
+    class Stop(Exception):
+        pass
+
+    calls = []
+
+    def check():
+        calls.append(1)
+        if len(calls) > 3:
+            raise Stop
+
+    with pytest.raises(Stop):
+        pipeline.solve(design, other_loops=False, check=check)
+    assert len(calls) == 4

@@ -293,11 +293,13 @@ class Search:
                            VERIFY_TOL * self.length, gap).scaled(self.unit, self.jf_design)
 
     def run(self, *, p: float, rho: float | None, d: float | None, d_fraction: float,
-            rho_fraction: float, max_k: int, budget: int | None = None, certify: bool = True):
+            rho_fraction: float, max_k: int, budget: int | None = None, certify: bool = True,
+            check: Callable[[], None] | None = None):
         """Parameters as :func:`realize`; the :meth:`result` of the first success.
 
         ``budget``: work units (:meth:`work`) after which the search stops with reason
         ``budget`` (checked between candidates): deterministic, unlike a wall-clock limit.
+        ``check()`` is called there too; it may raise to stop the search (the studio's cancel).
         Without ``certify`` the sound bounds are skipped and the first sequence the exact
         minima clear is returned as ``(shifts (6,), offsets (6,), vertices (12, 3))`` (design
         units): a drag preview and the pattern its release certifies, never a certificate."""
@@ -311,6 +313,8 @@ class Search:
         where = {"p": p, "d": d * u, "rho": rho * u}
 
         def over_budget(k: int, checked: int, what: str) -> None:
+            if check is not None:
+                check()
             if budget is not None and self.work(checked, tried) > budget:
                 raise RealizationError(
                     f"work budget of {budget} units used up at k = {k} {what} (p = {p}, "
@@ -422,6 +426,7 @@ def realize(
     max_k: int = 50,
     budget: int | None = None,
     in_unit: float = 1.0,
+    check: Callable[[], None] | None = None,
 ) -> Realization:
     """Collision-free realization of the loop ``joint_factors`` ``(6, 8)`` (Sec. 5.1).
 
@@ -431,11 +436,12 @@ def realize(
     units from the axis foot point). Raises :class:`RealizationError` (``bad-parameters``,
     ``singular-loop``, ``cap-reached`` when ``k`` would exceed ``max_k``, ``budget`` past
     ``budget`` work units, see :meth:`Search.work`). ``joint_factors`` may be given in a unit
-    of ``in_unit`` design units (the answer is in design units).
+    of ``in_unit`` design units (the answer is in design units). ``check()`` is called
+    between candidates and may raise to stop the search.
     """
     return Search(joint_factors, fixed, in_unit).run(p=p, rho=rho, d=d, d_fraction=d_fraction,
                                             rho_fraction=rho_fraction, max_k=max_k,
-                                            budget=budget)
+                                            budget=budget, check=check)
 
 
 def warm_start(joint_factors: np.ndarray, shifts: np.ndarray, offsets: np.ndarray, *,

@@ -350,14 +350,15 @@ def realize_with_effector(
     ee_clearance: float | None = None,
     budget: int | None = None,
     in_unit: float = 1.0,
+    check: Callable[[], None] | None = None,
 ) -> EndEffectorRealization:
     """Collision-free realization of ``joint_factors`` ``(6, 8)`` whose end link carries
     ``effector`` (from :func:`endeffector.attach`). Parameters as :func:`realize.realize`
     (``fixed`` may hold ``V_2``/``V_3`` as well); ``ee_clearance`` (default rho) is the least
     distance between P and any bar or pin centre line. ``l`` is the initial polyline's length
-    with the end link routed ``V_2 L R V_3``; ``in_unit`` as there. Raises
+    with the end link routed ``V_2 L R V_3``; ``in_unit``, ``check`` as there. Raises
     :class:`RealizationError`."""
     search = EffectorSearch(joint_factors, fixed, effector, ee_clearance, in_unit)
     return search.run(p=p, rho=rho, d=d, d_fraction=d_fraction, rho_fraction=rho_fraction,
-                      max_k=max_k, budget=budget)
+                      max_k=max_k, budget=budget, check=check)
 
