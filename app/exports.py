@@ -22,8 +22,10 @@ import numpy as np
 
 from app.state import FabSettings
 from paraloop_core import pipeline
+from paraloop_core.design import DriveSettings
 from paraloop_core.fabrication import animate, export, printable, sizing
 from paraloop_core.fabrication.parts import PartSpec, design_scale
+from paraloop_core.linkage import drive_plan
 
 #: Carving orders offered by the panel: target links first to last, each carved by the later.
 ORDER_PRESETS = {"base first": (0, 1, 2, 3, 4, 5), "end first": (3, 2, 4, 1, 5, 0)}
@@ -42,13 +44,31 @@ def export_files(solution: pipeline.Solution) -> list[tuple[str, bytes]]:
     return [("paraloop-result.json", result.encode("utf-8"))]
 
 
-def animation_file(solution: pipeline.Solution) -> tuple[str, bytes]:
-    """``(name, .glb bytes)``: the realized loop over one cycle (:mod:`animate`); raises
-    ValueError when the design has no collision-free realization."""
+def animation_keyframes(real: Any, drive: DriveSettings, frames: int
+                        ) -> tuple[np.ndarray, float, str]:
+    """``(t (frames,), cycle time s, what drives it)`` for an animation of the realization
+    ``real`` as the design's ``drive`` plan turns it (:func:`drive_plan.plan_drive`, base
+    link resting): its motor with the speed schedule, or at constant speed when no schedule
+    meets the drive's limits."""
+    plan = drive_plan.plan_drive(real.joint_factors, drive)
+    if plan.schedule is not None:
+        t = animate.scheduled_parameters(real.joint_factors, plan.schedule, frames)
+        return t, plan.cycle_time_s, f"motor joint {plan.motor} with its speed schedule"
+    theta = np.linspace(0.0, 2.0 * np.pi, frames)
+    return (animate.motor_parameters(real.joint_factors, plan.motor, theta), plan.cycle_time_s,
+            f"motor joint {plan.motor} at constant speed (no schedule meets the limits)")
+
+
+def animation_file(solution: pipeline.Solution, frames: int = 240) -> tuple[str, bytes]:
+    """``(name, .glb bytes)``: the realized loop over one cycle as the design's drive turns
+    it (:func:`animation_keyframes`, :mod:`animate`); raises ValueError when the design has no
+    collision-free realization."""
     real = solution.realization
     if real is None:
         raise ValueError("the design has no collision-free realization to animate")
-    glb = animate.animated_glb(real.joint_factors, real.points, real.radius)
+    t, seconds, _ = animation_keyframes(real, solution.design.drive, frames)
+    glb = animate.animated_glb(real.joint_factors, real.points, real.radius, frames=frames,
+                               seconds=seconds, t=t)
     return f"{slug(solution.design.name)}-cycle.glb", glb
 
 

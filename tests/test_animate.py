@@ -13,11 +13,13 @@ import pytest
 import trimesh
 
 from app.cli.main import main
+from app.exports import animation_keyframes
 from paraloop_core import design as design_mod
 from paraloop_core import pipeline
 from paraloop_core.algebra import dq
+from paraloop_core.design import DriveSettings
 from paraloop_core.fabrication import animate
-from paraloop_core.linkage import loops
+from paraloop_core.linkage import drive_plan, loops
 
 TV8 = Path(__file__).resolve().parents[1] / "assets" / "designs" / "tv8.json"
 #: design Z-up -> glTF Y-up as documented: (x, y, z) -> (x, z, -y)
@@ -95,8 +97,9 @@ def animated(doc: dict, blob: bytes) -> dict[int, dict[str, np.ndarray]]:
 
 
 def check_motion(data: bytes, jf: np.ndarray, points: np.ndarray, radius: float, frames: int,
-                 seconds: float) -> None:
-    """Everything the file promises, read back from ``data``."""
+                 seconds: float, t: np.ndarray | None = None) -> None:
+    """Everything the file promises, read back from ``data``; keyframes at parameters ``t``
+    (default: joint 0 at constant speed, checked here)."""
     doc, blob = read_glb(data)
     nodes = doc["nodes"]
     (root_index,) = doc["scenes"][doc["scene"]]["nodes"]
@@ -109,9 +112,11 @@ def check_motion(data: bytes, jf: np.ndarray, points: np.ndarray, radius: float,
     root_rot = rotation(root["rotation"])
     assert np.allclose(root_rot, Z_TO_Y, atol=1e-12)
     root_tr = np.array(root["translation"])
-    t = uniform_t(jf, frames)
-    assert np.allclose(loops.joint_angles(jf, t)[1:-1, 0],
-                       -2 * np.pi * np.arange(1, frames - 1) / (frames - 1), atol=1e-9)
+    uniform = t is None
+    if uniform:
+        t = uniform_t(jf, frames)
+        assert np.allclose(loops.joint_angles(jf, t)[1:-1, 0],
+                           -2 * np.pi * np.arange(1, frames - 1) / (frames - 1), atol=1e-9)
     expected = dq.to_matrix(loops.link_poses(jf, t))  # (N, 6, 4, 4), homogeneous -> matrices
     for link in range(6):
         node_index = next(i for i in root["children"] if nodes[i]["name"] == f"link_{link}")
@@ -142,12 +147,15 @@ def check_motion(data: bytes, jf: np.ndarray, points: np.ndarray, radius: float,
         want = (np.einsum("kab,pb->kpa", expected[:, link, :3, :3], home)
                 + expected[:, link, None, :3, 3])
         assert np.abs(world - want @ Z_TO_Y.T).max() < 1e-6 * size
-    # joint 0 read from the file: link 1 turns about A_0 (base frame) uniformly, one full turn
+    # joint 0 read from the file: link 1 turns about A_0 (base frame) one full turn, by default
+    # uniformly
     axis = loops.factor_axes(jf)[0, :3]
     q1 = anim[next(i for i in root["children"] if nodes[i]["name"] == "link_1")]["rotation"]
     angle = 2 * np.arctan2(q1[:, :3] @ axis, q1[:, 3])
     step = np.angle(np.exp(1j * np.diff(angle)))  # wrapped into (-pi, pi]
-    assert np.allclose(step, -2 * np.pi / (frames - 1), atol=1e-5)  # so one turn in all
+    if uniform:
+        assert np.allclose(step, -2 * np.pi / (frames - 1), atol=1e-5)  # so one turn in all
+    assert abs(abs(step.sum()) - 2 * np.pi) < 1e-5
 
 
 def _segment_distance(x: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -208,12 +216,42 @@ def test_bad_input_raises(real, kwargs, message):
 
 
 def test_cli_writes_glb(tmp_path, capsys, real):
+    """The file plays the design's drive: its recommended motor with the speed schedule."""
     out = tmp_path / "sub" / "loop.glb"
     assert main(["animate", str(TV8), "--out", str(out), "--frames", "12",
                  "--seconds", "2"]) == 0
-    assert "->" in capsys.readouterr().out
-    check_motion(out.read_bytes(), real.joint_factors, real.points, real.radius, 12, 2.0)
+    printed = capsys.readouterr().out
+    assert "->" in printed and "with its speed schedule" in printed
+    t, cycle, _ = animation_keyframes(real, DriveSettings(), 12)
+    assert cycle == 10.0
+    check_motion(out.read_bytes(), real.joint_factors, real.points, real.radius, 12, 2.0, t)
     assert [p.name for p in out.parent.iterdir()] == ["loop.glb"]  # no temporary left
+    default = tmp_path / "default.glb"  # without --seconds: the drive's cycle time
+    assert main(["animate", str(TV8), "--out", str(default), "--frames", "12"]) == 0
+    assert read_glb(default.read_bytes())[0]["asset"]["extras"]["seconds"] == 10.0
+
+
+def test_scheduled_keyframes_follow_the_schedule_in_time(real):
+    """Frame k's motor angle is reached at time T k / (N - 1): the time to each keyframe's
+    angle, integrated numerically (d tau = d theta / omega, omega^2 linear per step), is the
+    keyframe's time; the motor joint's own angle (loops.joint_angles) is that angle."""
+    jf = real.joint_factors
+    plan = drive_plan.plan_drive(jf, DriveSettings())
+    s, n = plan.schedule, 25
+    t = animate.scheduled_parameters(jf, s, n)
+    m, a, b = plan.motor, jf[plan.motor, 0], np.linalg.norm(jf[plan.motor, 1:4])
+    theta = np.mod(2 * np.arctan2(b, a - t), 2 * np.pi)  # the motor's turn since home
+    theta[-1] = 2 * np.pi
+    assert np.all(np.diff(theta) > 0)
+    fine = np.linspace(0.0, 2 * np.pi, 400_001)
+    omega = np.sqrt(np.interp(fine, s.theta, s.motor_speed**2))
+    step = np.diff(fine) * 0.5 * (1 / omega[1:] + 1 / omega[:-1])  # trapezoids of 1 / omega
+    tau = np.concatenate([[0.0], np.cumsum(step)])
+    at = np.interp(theta, fine, tau)
+    assert np.allclose(at, np.linspace(0.0, s.cycle_time, n), atol=1e-4 * s.cycle_time)
+    turn = np.abs(loops.joint_angles(jf, t)[1:-1, m])  # the motor joint's angle
+    assert np.allclose(np.minimum(turn, 2 * np.pi - turn),
+                       np.minimum(theta[1:-1], 2 * np.pi - theta[1:-1]), atol=1e-9)
 
 
 def test_cli_refuses_existing_output(tmp_path, capsys):

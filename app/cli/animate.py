@@ -1,8 +1,10 @@
 """``paraloop animate DESIGN.json --out loop.glb``: the realized loop as an animated glTF.
 
 Solves the design (with its realization) and writes one binary glTF 2.0 file: the six links as
-capsules, each a node with translation and rotation keyframes over one full cycle, joint 0
-turning at constant speed (:mod:`paraloop_core.fabrication.animate`). ``--out`` is checked
+capsules, each a node with translation and rotation keyframes over one full cycle, turned as
+the design's drive turns it: its motor (recommended unless set) with the speed schedule of its
+drive plan, over its cycle time (:func:`app.exports.animation_keyframes`,
+:mod:`paraloop_core.fabrication.animate`). ``--out`` is checked
 before the solve: a ``.glb`` file name in a writable folder, not existing unless ``--force``;
 the file is written atomically (temporary file + rename). Exit status 0 when written, 2 on
 refused input (nothing written), 3 when no collision-free realization was found, 1 on an
@@ -17,6 +19,9 @@ from pathlib import Path
 from app.cli import outputs
 from app.cli.export import solve_realized
 from app.cli.outputs import EXIT_OK
+from app.exports import animation_keyframes
+from paraloop_core import pipeline
+from paraloop_core.design import Design
 from paraloop_core.fabrication import animate
 
 
@@ -32,13 +37,19 @@ def cmd_animate(args: argparse.Namespace) -> int:
     path = Path(args.design)
     out = Path(args.out)
     check_out(out, path, args.force)
-    code, data = solve_realized(path, lambda _, sol: animate.animated_glb(
-        sol.realization.joint_factors, sol.realization.points, sol.realization.radius,
-        frames=args.frames, seconds=args.seconds))
-    if data is None:
+    def work(design: Design, sol: pipeline.Solution) -> tuple[bytes, float, str]:
+        real = sol.realization
+        t, cycle, how = animation_keyframes(real, design.drive, args.frames)
+        seconds = args.seconds or cycle
+        return animate.animated_glb(real.joint_factors, real.points, real.radius,
+                                    frames=args.frames, seconds=seconds, t=t), seconds, how
+
+    code, done = solve_realized(path, work)
+    if done is None:
         return code
+    data, seconds, how = done
     outputs.write_files(out.parent, [(out.name, data)])
-    print(f"{path} -> {out}: {args.frames} frames over {args.seconds:g} s, "
+    print(f"{path} -> {out}: {args.frames} frames over {seconds:g} s ({how}), "
           f"{len(data) / 1e6:.2f} MB")
     return EXIT_OK
 
@@ -52,6 +63,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="keyframes over one cycle, the last one repeating the first "
                         "(2..100000; default 240)")
     p.add_argument("--seconds", type=outputs.float_range(0.0, 86_400.0, lo_open=True),
-                   default=10.0, help="duration of one cycle in seconds (default 10)")
+                   default=None, help="duration of one cycle in seconds (default: the "
+                   "design's drive.cycle_time_s, 10 unless set)")
     p.add_argument("--force", action="store_true", help="overwrite an existing --out file")
     p.set_defaults(func=cmd_animate)

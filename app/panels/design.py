@@ -128,9 +128,10 @@ class Panels:
                                          hint="download the solution: motion, six "
                                               "factorizations, nine loops, realization (JSON)")
             self.animation = gui.add_button("Animation (glTF)", icon=viser.Icon.MOVIE,
-                                            hint="download the realized loop over one cycle "
-                                                 "(joint 0 at constant speed, 10 s) as an "
-                                                 "animated .glb for Blender or a web viewer")
+                                            hint="download the realized loop over one cycle, "
+                                                 "turned as the Drive folder's motor and speed "
+                                                 "schedule turn it, as an animated .glb for "
+                                                 "Blender or a web viewer")
         with gui.add_folder("Targets"):
             self.locks_folder = gui.add_folder("Locks")
             self.locks: list[viser.GuiCheckboxHandle] = []

@@ -7,11 +7,13 @@ base frame), one colour per link (those of ``assembly.glb``).
 
 **Animation** ``cycle``: per link node a TRANSLATION and a ROTATION channel, LINEAR, sharing
 one input of N times ``seconds k / (N - 1)``. Frame k is the link poses of
-:func:`loops.link_poses` at the parameter t_k where joint 0 (the base link's first joint) has
-turned by ``-2 pi k / (N - 1)`` about its factor's ``+direction`` (the sense of
+:func:`loops.link_poses` at a parameter t_k: by default where joint 0 (the base link's first
+joint) has turned by ``-2 pi k / (N - 1)`` about its factor's ``+direction`` (the sense of
 :func:`loops.joint_angles` as t runs from +inf down to -inf): joint 0 turns at constant speed
-and the last frame is the first (home) after one full turn. Rotations are glTF ``xyzw``
-quaternions, consecutive ones in the same hemisphere.
+and the last frame is the first (home) after one full turn. With a motor speed schedule
+(:func:`scheduled_parameters`; ``paraloop animate`` and the studio use the design's drive
+plan), frame k is where the schedule's motor is at time ``T k / (N - 1)``. Rotations are
+glTF ``xyzw`` quaternions, consecutive ones in the same hemisphere.
 
 **Units and axes.** Lengths are design units (one glTF "metre" is one design unit; stated in
 ``asset.extras``). Designs are Z-up, glTF is Y-up: the root node rotates by -90 deg about X
@@ -33,7 +35,8 @@ import trimesh
 
 from paraloop_core.algebra import dq, poly
 from paraloop_core.fabrication.export import LINK_COLORS
-from paraloop_core.linkage import loops
+from paraloop_core.linkage import drive, loops
+from paraloop_core.linkage.schedule import SpeedSchedule
 
 #: Root rotation (xyzw): -90 deg about X takes design Z-up to glTF Y-up.
 Z_UP_TO_Y_UP = (-float(np.sqrt(0.5)), 0.0, 0.0, float(np.sqrt(0.5)))
@@ -80,6 +83,37 @@ def keyframe_parameters(joint_factors: np.ndarray, frames: int) -> np.ndarray:
     # Joint 0's angle is 2 atan2(-r, t - h_0) (loops.joint_angles), which is -2 pi u exactly
     # where t - h_0 = r cot(pi u) = r param_to_t(1 - u): inf at u = 0 and u = 1.
     return root.real + root.imag * poly.param_to_t(1.0 - u)
+
+
+def motor_parameters(joint_factors: np.ndarray, motor: int, theta: np.ndarray) -> np.ndarray:
+    """Parameters t ``(N,)`` at which joint ``motor`` has turned by ``theta`` ``(N,)`` rad
+    since home, in :mod:`drive`'s sense (``t = a - b cot(theta / 2)``: t increasing); home
+    (``t = inf``) where theta is a multiple of 2 pi."""
+    _, a, b = drive.norm_roots(_finite_array(joint_factors, (6, 8), "joint_factors"))
+    m = drive.check_index("motor", motor, 0, 5)
+    half = 0.5 * np.asarray(theta, dtype=np.float64)
+    home = np.abs(np.sin(half)) <= 4.0 * np.finfo(float).eps
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(home, np.inf, a[m] - b[m] * np.cos(half) / np.sin(half))
+
+
+def scheduled_parameters(joint_factors: np.ndarray, schedule: SpeedSchedule, frames: int
+                         ) -> np.ndarray:
+    """Parameters t ``(frames,)`` at the equal times ``k T / (frames - 1)`` of a motor speed
+    ``schedule`` (:func:`schedule.speed_schedule`, T its cycle time) of the loop
+    ``joint_factors``. Exact per step: ``x = omega^2`` is linear in the motor angle there, so
+    ``omega`` is linear in time."""
+    n, s = _check_frames(frames), schedule
+    tau = np.linspace(0.0, s.time[-1], n)
+    k = np.clip(np.searchsorted(s.time, tau, side="right") - 1, 0, len(s.time) - 2)
+    w0, w1, step = s.motor_speed[k], s.motor_speed[k + 1], np.diff(s.theta)[k]
+    w = w0 + (tau - s.time[k]) * (w1**2 - w0**2) / (2.0 * step)  # omega at tau
+    with np.errstate(divide="ignore", invalid="ignore"):  # a step at constant speed: 0 / 0
+        lam = np.where(np.abs(w1 - w0) > 1e-12 * w0, (w**2 - w0**2) / (w1**2 - w0**2),
+                       (tau - s.time[k]) * w0 / step)
+    theta = s.theta[k] + np.clip(lam, 0.0, 1.0) * step
+    theta[-1] = s.theta[-1]  # the cycle closes at home exactly
+    return motor_parameters(joint_factors, s.motor, theta)
 
 
 def _capsule(p0: np.ndarray, p1: np.ndarray, radius: float) -> trimesh.Trimesh:
@@ -166,23 +200,30 @@ def _glb(doc: dict, data: bytes) -> bytes:
 
 
 def animated_glb(joint_factors: np.ndarray, points: np.ndarray, radius: float, *,
-                 frames: int = 240, seconds: float = 10.0) -> bytes:
+                 frames: int = 240, seconds: float = 10.0, t: np.ndarray | None = None
+                 ) -> bytes:
     """Binary glTF 2.0 of the loop moving through one full cycle (module docstring).
 
     ``joint_factors`` ``(6, 8)`` (:mod:`paraloop_core.algebra.dq` convention), ``points``
     ``(12, 3)`` ``S_0, E_0, ..., S_5, E_5`` at home and the bar ``radius`` of a
     :class:`~paraloop_core.realization.realize.Realization`, design units; ``frames`` >= 2
-    keyframes over ``seconds`` > 0. Raises ValueError on bad input."""
+    keyframes over ``seconds`` > 0, at the parameters ``t`` ``(frames,)`` if given (e.g.
+    :func:`scheduled_parameters`: a motor's speed schedule), else :func:`keyframe_parameters`
+    (joint 0 at constant speed). Raises ValueError on bad input."""
     jf = _finite_array(joint_factors, (6, 8), "joint_factors")
     pts = _finite_array(points, (12, 3), "points")
     rho = _positive(radius, "radius")
     n = _check_frames(frames)
+    if t is None:
+        t = keyframe_parameters(jf, n)
+    elif np.shape(t) != (n,) or np.isnan(t).any():
+        raise ValueError(f"t must be {n} parameters (inf allowed), got shape {np.shape(t)}")
     duration = _positive(seconds, "seconds")
     times = np.linspace(0.0, duration, n).astype(np.float32)
     if not (np.diff(times) > 0).all():  # glTF requires strictly increasing inputs
         raise ValueError(f"{n} frames over {duration:g} s are too close for float32 times")
     centre = pts.mean(axis=0)
-    translation, xyzw = node_keyframes(jf, keyframe_parameters(jf, n), centre)
+    translation, xyzw = node_keyframes(jf, np.asarray(t, dtype=np.float64), centre)
 
     buf = _Buffer()
     meshes, materials = [], []
