@@ -21,7 +21,8 @@ from paraloop_core.errors import (
     ParaloopError,
     RealizationError,
 )
-from paraloop_core.pipeline import Solution, result_to_dict, save_result, solve
+from paraloop_core.pipeline import Solution, solve
+from paraloop_core.result import result_to_dict, save_result
 
 __all__ = [
     "Design", "Pose", "design_from_dict", "load_design", "save_design",

@@ -25,6 +25,7 @@ from app.cli.outputs import EXIT_INTERNAL, EXIT_NOT_REALIZED, EXIT_OK, EXIT_REFU
 from paraloop_core import design as design_mod
 from paraloop_core import pipeline
 from paraloop_core.errors import RealizationError
+from paraloop_core.result import write_json_atomic
 
 
 class Parser(argparse.ArgumentParser):
@@ -82,9 +83,9 @@ def _solve_one(path: Path, target: Path, solved: batch.Outcome, out_dir: Path | 
     real = result.get("realization", {})
     if out_dir is not None:
         with outputs.created_dir(out_dir):
-            pipeline.write_json_atomic(target, result)
+            write_json_atomic(target, result)
     else:
-        pipeline.write_json_atomic(target, result)
+        write_json_atomic(target, result)
     print(f"{path} -> {target}")
     if real.get("status", "found") != "found":
         print(f"warning: {path}: solved, but no collision-free realization was found "

@@ -1,0 +1,109 @@
+"""The result JSON of a solved design (``docs/result-format.md``): building it, writing it.
+
+:func:`result_to_dict` takes a :class:`paraloop_core.pipeline.Solution` (not imported: the
+pipeline imports this module).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from paraloop_core.algebra import factor
+
+RESULT_FORMAT = "paraloop-result"
+RESULT_VERSION = 1
+
+
+def _t_json(t: float) -> float | None:
+    return None if np.isinf(t) else float(t)
+
+
+def result_to_dict(sol: Any) -> dict[str, Any]:
+    """The result JSON (see ``docs/result-format.md``)."""
+    facts = sol.factorizations
+    labels = "ABC"
+    out: dict[str, Any] = {
+        "format": RESULT_FORMAT,
+        "version": RESULT_VERSION,
+        "design": sol.design.name,
+        "convention": "dual quaternion [p0,p1,p2,p3,d0,d1,d2,d3], point action "
+        "x -> (P x P~ + 2 D P~)/|P|^2; lines (direction, moment = point x direction)",
+        "motion": {
+            "coefficients": sol.motion.tolist(),
+            "pose_parameters": [_t_json(t) for t in sol.pose_parameters],
+            "family": sol.design.motion.family,
+            "mu": _t_json(np.inf if sol.mu is None else sol.mu),
+            "norm_quadratics": {labels[i]: [float(q[0]), float(q[1]), 1.0]
+                                for i, q in enumerate(facts.quadratics)},
+        },
+        "factorizations": [
+            {"norm_order": [labels[i] for i in facts.norm_order[j]],
+             "factors": facts.factors[j].tolist()}
+            for j in range(6)
+        ],
+        "loops": [
+            {"type": lp.kind, "factorizations": list(lp.factorizations),
+             "axes": lp.axes.tolist(), "singularity": float(sol.singularity[k]),
+             "singularity_t": _t_json(sol.singularity_t[k])}
+            for k, lp in enumerate(sol.loops)
+        ],
+        "loop": sol.design.loop,
+    }
+    a, b, length = factor.conditioning_batch(sol.monic)
+    out["conditioning"] = {
+        "a": float(a), "b": float(b), "length": float(length),
+        "meaning": "the factorization works in s with t = a s + b (norm roots round s = i) "
+                   "and lengths divided by 'length'; the certificate in the same s (from the "
+                   "loop's norm roots) and its own unit; every t and length here is the "
+                   "design's",
+    }
+    out["motion"]["method"] = sol.design.motion.method
+    if sol.fit is not None:
+        from paraloop_core.motion import evolution
+
+        out["motion"]["fit"] = evolution.fit_result_to_dict(sol.fit)
+    if sol.realization is not None:
+        from paraloop_core.realization.report import realization_to_dict
+
+        out["realization"] = {**sol.realization_report, "loop": sol.design.loop,
+                              **realization_to_dict(sol.realization)}
+    elif sol.realization_report is not None:
+        out["realization"] = {**sol.realization_report, "loop": sol.design.loop}
+    if sol.end_effector is not None:
+        from paraloop_core.realization import ee_certificate
+
+        out["end_effector"] = ee_certificate.ee_to_dict(sol.end_effector)
+    from paraloop_core.linkage import drive_plan
+
+    try:  # the chosen loop in design units, base link resting; never fails a solve
+        out["drive"] = drive_plan.plan_to_dict(drive_plan.plan_drive(
+            sol.loop.joint_factors, sol.design.drive, resting_link=0))
+    except ValueError as exc:
+        out["drive"] = {"error": str(exc)}
+    return out
+
+
+def save_result(sol: Any, path: str | Path) -> None:
+    """Write the result JSON of ``sol`` to ``path`` atomically (strict JSON: no NaN/Infinity)."""
+    write_json_atomic(Path(path), result_to_dict(sol))
+
+
+def write_json_atomic(path: Path, data: dict[str, Any]) -> None:
+    """Strict JSON (``ValueError`` on NaN/inf) to a temporary file beside ``path``, then a rename:
+    a failure never leaves a half-written file or the temporary behind."""
+    import json
+    import os
+    import tempfile
+
+    text = json.dumps(data, indent=1, allow_nan=False) + "\n"
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            f.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
