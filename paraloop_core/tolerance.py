@@ -22,6 +22,11 @@ class Tolerance:
     translation: float = 1e-9
     #: relative residual of products / Study condition accepted as exact.
     residual: float = 1e-7
+    #: smallest / largest singular value of four relative poses (unit dual quaternions, dual
+    #: parts scaled to O(1)) at or below which they span less than a 3-space. Their float64
+    #: rounding moves singular values by ~1e-16 of the largest (Weyl), so anything above this
+    #: is certainly of rank 4: the cubic exists, however ill-conditioned.
+    rank: float = 1e-13
     #: relative residual (primal and dual parts each to their own size) of the product of the
     #: float64 factors above which they are refined by Newton steps: motions near a singular
     #: pose lose digits in HSS (2.6e-3 was seen), and the loop must still be the motion.

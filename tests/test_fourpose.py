@@ -149,3 +149,21 @@ def test_bad_mu():
         fourpose.four_pose_motion_batch(fams, 1, np.array([0.0, fams.t[1, 0]]))
     assert fourpose.bad_mu_mask(fams, 1, np.array([0.0, 1.0, fams.t[1, 2]])).tolist() == [
         False, True, True]
+
+
+def test_close_poses_on_a_cubic_are_interpolated_not_refused():
+    """Two of the four poses 0.01 apart (random generic design 50106): singular values 2.4 ..
+    1.3e-7, far above float64 rounding (1e-16), so rank 4 for certain. The cubic through
+    them exists and is found (it was once refused as "rank < 4" at a 1e-7 threshold)."""
+    from paraloop_core import design as design_mod
+    from paraloop_core import pipeline
+    from tests.independent.generic_designs import random_design
+
+    d = design_mod.design_from_dict(random_design(50106))
+    poses = pipeline.design_poses(d)
+    fams = fourpose.four_pose_families(poses)
+    assert fams is not None
+    sol = pipeline.solve(d, realize=False)
+    for t, pose in zip(sol.pose_parameters, poses, strict=True):
+        at = dq.normalize(poly.evaluate_pose(sol.motion, t))
+        assert min(np.abs(at - pose).max(), np.abs(at + pose).max()) < 1e-11

@@ -122,7 +122,7 @@ def four_pose_families(poses: np.ndarray) -> FourPoseFamilies:
             f"poses {i} and {j} coincide (within tolerance): four distinct poses are "
             "needed", "coincident")
     sv = np.linalg.svd(scaled, compute_uv=False)
-    if sv[-1] <= TOL.residual * sv[0]:
+    if sv[-1] <= TOL.rank * sv[0]:
         raise InterpolationError(
             "degenerate poses: the four poses span less than a projective 3-space in the Study "
             "quadric (rank < 4), so no cubic interpolates them", "rank")
