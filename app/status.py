@@ -39,26 +39,25 @@ def realization_note(sol: pipeline.Solution) -> str:
 
 
 def status_line(sol: pipeline.Solution, *, full: bool, ms: float, note: str, ghost: bool,
-                moved: bool, refine_starts: int | None) -> str:
+                moved: bool, refine_starts: int | None, searching: bool = False) -> str:
     """The status after drawing ``sol``: a full update or a preview (``moved``: it shows the
     last realization moved along), ``note`` why there is no realization ('' if there is one),
     ``ghost`` the last realized linkage shown faint, ``refine_starts`` the starts of the
-    multi-start fit that follows a quick one (0: the full realization search follows a quick
-    one that found nothing; None: nothing follows)."""
+    multi-start fit that follows a quick one (None: none follows), ``searching`` the full
+    realization search follows a quick one that found nothing."""
     if full and not note:
         note = realization_note(sol)
     elif note and ghost:
         note += " The last realized linkage is shown faint."
     if not full and moved:
-        note = "Linkage: the last realization moved along, its minima checked exactly; " \
-               "certified collision-free on release."
-    searching = full and sol.realization is None and refine_starts is not None
+        note = "Linkage: the last realization moved along (or a new shift pattern found), " \
+               "its minima checked exactly; certified collision-free on release."
     if refine_starts:
         note += (f" Motion: the drag's one-start fit; refining it with {refine_starts} starts "
                  "in the background.")
     if searching:
         note += (" Realization: none found by the quick search; the full search (deeper "
-                 "shifts, thinner bars) runs in the background (Cancel job stops it).")
+                 "shifts, thinner bars) is running (an edit or Cancel job stops it).")
     # "ok" only when there is a loop to show (or none was asked for)
     word = "⚠ no collision-free realization" if full and sol.realization is None and \
         sol.design.realization.enabled else "ok"

@@ -69,7 +69,8 @@ class Studio(FileTransfers):
         self.timings: dict[int, list[float]] = {PREVIEW: [], FULL: [], REFINE: [], FRAME: []}
         self._need_sync = True
         self._drawn = (-1, -1)  # (version, level) of the design on screen
-        self._refine_for = -1  # the version whose quick fit awaits the multi-start REFINE
+        self._refine_for = -1  # the version whose quick update awaits its REFINE job
+        self._busy_frame: tuple[float, tuple] = (0.0, ())  # (when, what) a long job drew
         self._progress: list[Any] = []
         self.scene = SceneView(server, self._on_gizmo)
         self.panels = Panels(server, self)
@@ -236,6 +237,7 @@ class Studio(FileTransfers):
             self.jobs.check()
             if self.state.version != version:  # a newer edit supersedes this job
                 raise Cancelled(by_user=False)
+            self._frame_while_busy()
 
         def progress(fraction: float, message: str) -> None:
             check()
@@ -248,8 +250,24 @@ class Studio(FileTransfers):
         if fit and level == REFINE and shown is not None and shown.fit is not None \
                 and shown.fit.cost <= sol.fit.cost:  # the drag's fit stays: it fits better
             sol, note = dataclasses.replace(shown, design=design), ""
+            if incomplete(sol):  # its quick search missed: the full search, on that fit
+                with self.jobs.running("realization search"):
+                    sol, note = self.solver.complete(design, sol.fit, check)
             self.solver.remember(design, sol, note)
         return sol, note
+
+    def _frame_while_busy(self) -> None:
+        """During a long job on the worker (fit, full search): redraw the frame, at most 30
+        times a second, when the slider, Play or the layers moved it."""
+        now = time.monotonic()
+        if now - self._busy_frame[0] < 1.0 / 30.0:
+            return
+        seen = (self.state.u, self.state.thickness, tuple(sorted(self.state.hidden)))
+        if seen != self._busy_frame[1]:
+            with self.server.atomic():
+                self.scene.draw_frame(self.state.u, self.state.thickness)
+                self.scene.apply_layers(self.state.hidden)
+        self._busy_frame = (now, seen)
 
     def _solve_and_draw(self, design: Design, version: int, level: int) -> None:
         full = level >= FULL
@@ -305,7 +323,7 @@ class Studio(FileTransfers):
         self.panels.status.content = status_line(
             dataclasses.replace(sol, design=design), full=full, ms=ms, note=note,
             ghost=self.scene.ghost is not None, moved=preview is not None,
-            refine_starts=refine)
+            refine_starts=refine or None, searching=refine is not None and incomplete(sol))
         self.panels.rescale.visible = bool(scale_warning(design))
 
     def _play(self) -> None:

@@ -157,6 +157,8 @@ def solve(design: Design, *, realize: bool = True, other_loops: bool = True,
     decisions (same loop, shifts, offsets, relative clearances) even for ill-conditioned
     motions, whose answer a last-bit difference of the input can change."""
     check_pose_count(design)
+    if quick_work is not None and not (isinstance(quick_work, int) and quick_work >= 1):
+        raise ValueError(f"quick_work must be a positive integer or None, got {quick_work!r}")
     poses = design_poses(design)
     unit = unit_length(poses)
     if design.motion.method == "fit":
@@ -333,7 +335,8 @@ def _with_realization(sol: Solution, other_loops: bool, quick_work: int | None =
     for n, (loop, rho_f, d_f) in enumerate(attempts):
         attempt = replace(sol, design=replace(sol.design, loop=loop))
         jf, in_unit = sol.search_factors(loop)
-        budget = quick_work or (FALLBACK_WORK if n else FIRST_ATTEMPT_WORK)
+        budget = quick_work if quick_work is not None else (
+            FALLBACK_WORK if n else FIRST_ATTEMPT_WORK)
         params = dict(_params(sol, rho_f, d_f), in_unit=in_unit, budget=budget, check=check)
         try:
             if sol.design.end_effector is None:

@@ -81,7 +81,7 @@ def result_to_dict(sol: Any) -> dict[str, Any]:
     try:  # the chosen loop in design units, base link resting; never fails a solve
         out["drive"] = drive_plan.plan_to_dict(drive_plan.plan_drive(
             sol.loop.joint_factors, sol.design.drive, resting_link=0))
-    except ValueError as exc:
+    except (ValueError, RuntimeError) as exc:  # RuntimeError: a limit check failed (a bug)
         out["drive"] = {"error": str(exc)}
     return out
 

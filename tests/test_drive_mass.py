@@ -107,3 +107,10 @@ def test_drive_settings_choose_motor_and_density():
     assert other["moving_mass_kg"] == pytest.approx(2 * same["moving_mass_kg"], rel=1e-12)
     assert other["peak_torque_n_m"] == pytest.approx(2 * same["peak_torque_n_m"], rel=1e-12)
     assert "density 2480 kg/m^3" in drive_mass.drive_line(other)
+
+
+def test_drive_line_says_why_when_the_torque_is_missing():
+    assert drive_mass.drive_line({"error": "part x is not a closed solid: no mass"}) == \
+        "motor torque not computed: part x is not a closed solid: no mass"
+    assert drive_mass.material(1240) == "PLA 1240 kg/m^3"
+    assert drive_mass.material(1000.0) == "density 1000 kg/m^3"

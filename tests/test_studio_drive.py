@@ -130,6 +130,7 @@ def test_torque_of_the_fabricated_parts_until_the_design_changes(tv8):
              "link_masses_kg": [0.02, 0.017, 0.017, 0.017, 0.017, 0.016],
              "moving_mass_kg": 0.084, "peak_torque_n_m": 0.05, "theta_rad": theta.tolist(),
              "torque_n_m": (0.05 * np.sin(theta)).tolist()}
+    tv8.fabrication.report_for = tv8.solution.realization  # what the export job records
     tv8.fabrication.report = {"drive": entry}
     tv8._busy(None)  # what the end of the export job does
     drawn(tv8)
@@ -144,6 +145,18 @@ def test_torque_of_the_fabricated_parts_until_the_design_changes(tv8):
     gizmo(tv8, 3, position=tv8.state.design.poses[3].position + 0.01)
     drawn(tv8)
     assert not d.torque.visible and d.torque_text.content == NO_PARTS
+    # an export of another realization (e.g. an edit landed before it ended): not shown
+    tv8.fabrication.report_for = None
+    tv8.fabrication.report = {"drive": entry}
+    tv8._busy(None)
+    drawn(tv8)
+    assert not d.torque.visible and d.torque_text.content == NO_PARTS
+    # a torque the export could not compute says why
+    tv8.fabrication.report_for = tv8.solution.realization
+    tv8.fabrication.report = {"drive": {"error": "link_2 is not a closed solid: no mass"}}
+    tv8._busy(None)
+    drawn(tv8)
+    assert not d.torque.visible and "not a closed solid" in d.torque_text.content
 
 
 def test_parse_limit_and_checked_settings():

@@ -453,6 +453,16 @@ def test_a_release_the_quick_search_misses_is_searched_fully_in_the_background(
     click(studio.panels.redo)
     settle(studio)
     assert studio.solution.realization is sol.realization
+    # the slider moves during a search: the frame is redrawn from inside it
+    frames = []
+    monkeypatch.setattr(studio.scene, "draw_frame", lambda u, th: frames.append(u))
+    studio._busy_frame = (0.0, ())
+    studio.state.u = 0.37
+    studio._frame_while_busy()
+    assert frames == [0.37]
+    monkeypatch.undo()
+    monkeypatch.setattr(pipeline, "PREVIEW_WORK", 1)
+    monkeypatch.setattr(solver_mod, "QUICK_WORK", 1)
     # a job superseded by an edit: the check raises as soon as the design changes
     checks = []
 

@@ -268,3 +268,49 @@ def test_a_bug_in_a_background_job_is_notified(tv8, monkeypatch):
     assert tv8.worker.wait_idle(30) and tv8.jobs.wait(30)
     assert tv8.notifications[-1][0] == "Internal error" and "boom" in tv8.notifications[-1][1]
     assert tv8.jobs.busy is None and not tv8.panels.cancel.visible
+
+
+@pytest.mark.parametrize("drag_fit_wins", [False, True])
+def test_a_fit_release_whose_quick_search_misses_ends_realized(monkeypatch, drag_fit_wins):
+    """A fit design's quick update without a realization (the quick search missed): REFINE
+    runs the multi-start fit and the full search, also when the drag's fit stays the better
+    one (forced here by making the multi-start fit look worse); the studio ends realized,
+    never "searching" for ever, and never caches an incomplete search."""
+    from app import solver as solver_mod
+
+    monkeypatch.setattr(solver_mod, "QUICK_WORK", 1)
+    monkeypatch.setattr(pipeline, "PREVIEW_WORK", 1)
+    server, app = open_studio("sun-path-fit")
+    try:
+        seen = []
+        draw = app._solve_and_draw
+        app._solve_and_draw = lambda *a: (draw(*a), seen.append((
+            a[2], app.solution.realization, app.panels.status.content)))
+        completed = []
+        full_search, solve = app.solver.complete, app.solver.solve
+        monkeypatch.setattr(app.solver, "complete",
+                            lambda *a, **k: completed.append(1) or full_search(*a, **k))
+
+        def worse_refit(design, full, current, progress=None, **kw):
+            sol, note = solve(design, full, current, progress, **kw)
+            if drag_fit_wins and progress is not None:  # the REFINE's multi-start fit
+                sol = dataclasses.replace(sol, fit=dataclasses.replace(
+                    sol.fit, cost=10 * sol.fit.cost + 1.0))
+            return sol, note
+
+        monkeypatch.setattr(app.solver, "solve", worse_refit)
+        p = app.state.design.poses[7].position
+        gizmo(app, 7, position=p + 0.3, phases=("update",))  # the preview's one-start fit
+        gizmo(app, 7, position=p + 0.3, phases=("end",))
+        first = next(s for lvl, _, s in seen if lvl == studio_mod.FULL)
+        assert "searching for a collision-free realization" in first
+        lvl, real, status = seen[-1]
+        assert lvl == studio_mod.REFINE and real is not None
+        assert "searching" not in status and "**Status:** ok" in status
+        assert not solver_mod.incomplete(app.solution)
+        # the drag's fit with a complete search would also do: never an incomplete cache
+        assert all(not solver_mod.incomplete(s) for s, _ in app.solver._cache.values())
+        assert len(completed) == int(drag_fit_wins)
+    finally:
+        app.close()
+        server.stop()

@@ -23,9 +23,9 @@ import viser.uplot as uplot
 
 from app.panels.design import handler, writing_back
 from app.worker import FRAME, FULL, PREVIEW, NewestWorker
-from paraloop_core import design as design_mod
+from paraloop_core import design_checks
 from paraloop_core.design import Design, DriveSettings
-from paraloop_core.fabrication.drive_mass import MATERIALS
+from paraloop_core.fabrication.drive_mass import material
 from paraloop_core.linkage.drive_plan import DrivePlan, plan_drive
 
 if TYPE_CHECKING:
@@ -58,8 +58,8 @@ def checked(design: Design, key: str, value: Any) -> Design:
     """``design`` with ``drive.<key> = value``, validated as the design file is (raises
     :class:`DesignFileError`, a ValueError, naming the field and its range)."""
     drive = dataclasses.replace(design.drive, **{key: value})
-    data = {**design_mod.design_to_dict(design), "drive": dataclasses.asdict(drive)}
-    return dataclasses.replace(design, drive=design_mod.design_from_dict(data).drive)
+    fields = design_checks.drive(dataclasses.asdict(drive))  # the file's rules, drive only
+    return dataclasses.replace(design, drive=DriveSettings(**fields))
 
 
 def _speed_chart(gui: Any, title: str) -> Any:
@@ -80,9 +80,6 @@ def speed_data(time_s: np.ndarray, velocity: np.ndarray, limit: float) -> tuple:
     return (time_s, *speed.T, np.full(len(time_s), limit))
 
 
-def material(density: float) -> str:
-    """``'PLA'`` for a known print material's density (kg/m^3), else ``'1000 kg/m³'``."""
-    return MATERIALS.get(float(density), f"{density:g} kg/m³")
 
 
 def _same_realization(a: Any, b: Any) -> bool:
@@ -193,8 +190,8 @@ class DrivePanel:
             if level >= FULL and sol is not None:
                 self._source = (sol, settings)
             report = self.fabrication.report
-            if report is not self._report[0]:  # an export just finished: its realization
-                self._report = (report, None if sol is None else sol.realization)
+            if report is not self._report[0]:  # an export finished: the realization it
+                self._report = (report, self.fabrication.report_for)  # was made from
             if self._source is None:
                 return
             key = (*self._source, report)
@@ -210,6 +207,9 @@ class DrivePanel:
             (sol, settings), (report, real), key = self._source, self._report, self._key
         entry = None if report is None else report.get("drive")
         fresh = entry is not None and _same_realization(real, sol.realization)
+        other = None if report is None else report.get("sizing", {}).get("realization")
+        if fresh and other:  # the export printed another realization than the studio's
+            entry = {**entry, "exported_realization": other}
         return sol, settings, entry if fresh else None, key
 
     def _quiet(self) -> None:
@@ -221,7 +221,7 @@ class DrivePanel:
         self._quiet()
         sol, settings, entry, key = self._inputs()
         jf = sol.loop.joint_factors
-        rest = 0 if entry is None else int(entry["resting_link"])
+        rest = 0 if entry is None or "error" in entry else int(entry["resting_link"])
         try:
             p = self._planned
             if not (p and p[0] is jf and p[1:] == (settings, rest)):
@@ -260,11 +260,13 @@ class DrivePanel:
         if s is not None:
             self.scheduled.title = f"Joint speeds with the recommended schedule of joint {m}"
             self.scheduled.data = speed_data(s.time, s.velocity, limit)
-        self.torque.visible = entry is not None
+        self.torque.visible = entry is not None and "error" not in entry
         if entry is None:
             self.torque_text.content = NO_PARTS
             return
         self.torque_text.content = torque_text(entry, plan)
+        if "error" in entry:
+            return
         theta = np.degrees(np.append(entry["theta_rad"], TWO_PI))
         torque = np.asarray(entry["torque_n_m"], float)
         self.torque.data = (theta, np.append(torque, torque[0]))
@@ -310,10 +312,14 @@ def summary_text(plan: DrivePlan) -> str:
 def torque_text(entry: dict, plan: DrivePlan) -> str:
     """The parts' torque (a report's ``drive`` entry) for people, with what differs from the
     panel's settings (the export's motor or density)."""
+    if "error" in entry:
+        return f"**Motor torque:** ⚠ not computed for the exported parts: {entry['error']}"
     text = (f"**Motor torque** from the fabricated parts: {entry['moving_mass_kg']:.3g} kg "
             f"moving, {material(entry['density_kg_m3'])}; peak "
             f"{entry['peak_torque_n_m']:.3g} N·m for motor joint {entry['motor']} "
             f"(grounded link {entry['resting_link']}).")
+    if "exported_realization" in entry:
+        text += f" *The export printed another realization: {entry['exported_realization']}*"
     if entry["motor"] != plan.motor or entry["density_kg_m3"] != plan.density_kg_m3:
         text += (f" *Exported for motor joint {entry['motor']} at "
                  f"{entry['density_kg_m3']:g} kg/m³; Export all again for the settings "

@@ -63,6 +63,7 @@ class FabricationPanel:
         self.server = server
         gui, fab = server.gui, studio.state.fab
         self.report: dict | None = None  # the last export's report.json
+        self.report_for: Any = None  # the realization that export was made from
         self._version = -1  # design version the running task started from
         self.carving: dict | None = None  # the last carving's report
         self.progress_log: list[tuple[str, float]] = []
@@ -238,6 +239,7 @@ class FabricationPanel:
         name, data, report = export_zip(sol, studio.state.fab,
                                         lambda f, m: self._progress(f, m, "Export"))
         studio.send_file(client, name, data)
+        self.report_for = sol.realization  # first: a reader of a new report finds its source
         self.report = report
         if report is None:
             studio.notify("Exported the result only", "the design has no realization, so "

@@ -40,9 +40,7 @@ def link_mass_properties(parts: Sequence[Part], density_kg_m3: float,
     """Link masses ``(6,)`` (kg) and centres of mass ``(6, 3)`` (m, the parts' home frame) of
     ``parts`` (mm) at ``density_kg_m3``; ``meshes``: the parts' trimeshes by name if already
     made (:func:`export.part_trimesh`). A link without parts has mass 0, centre 0."""
-    rho = float(density_kg_m3) if isinstance(density_kg_m3, (int, float, np.number)) else np.nan
-    if not (np.isfinite(rho) and rho > 0):
-        raise ValueError(f"density_kg_m3 must be a positive finite number, got {density_kg_m3!r}")
+    rho = drive.check_positive("density_kg_m3", density_kg_m3)
     mass, moment = np.zeros(6), np.zeros((6, 3))  # kg, kg m
     for p in parts:
         tm = meshes[p.name] if meshes is not None and p.name in meshes else part_trimesh(p)
@@ -93,11 +91,18 @@ def drive_entry(asm: Assembly, resting_link: int, settings: DriveSettings | None
                       "exported meshes at the density; no inertia, no friction"}
 
 
+def material(density_kg_m3: float) -> str:
+    """``'PLA 1240 kg/m^3'`` for a known print material's density, else ``'density 1000
+    kg/m^3'``."""
+    rho = float(density_kg_m3)
+    return f"{MATERIALS.get(rho, 'density')} {rho:g} kg/m^3"
+
+
 def drive_line(entry: dict) -> str:
     """One line for people: motor joint, peak torque, moving mass, density (a report's
-    ``drive`` entry, :func:`drive_entry`)."""
-    rho = entry["density_kg_m3"]
-    material = f"{MATERIALS[rho]} " if rho in MATERIALS else "density "
+    ``drive`` entry, :func:`drive_entry`, or why it is missing)."""
+    if "error" in entry:
+        return f"motor torque not computed: {entry['error']}"
     return (f"motor joint {entry['motor']} (resting link {entry['resting_link']}): peak torque "
             f"{entry['peak_torque_n_m']:.3g} N*m for {entry['moving_mass_kg']:.3g} kg moving "
-            f"({material}{rho:g} kg/m^3)")
+            f"({material(entry['density_kg_m3'])})")

@@ -178,7 +178,10 @@ def export_printable(realization: Realization, *,
     meshes = {p.name: export.part_trimesh(p) for p in result.assembly.parts}
     report["walls"] = walls
     resting = report.get("grounding", {}).get("link", 0)  # no column: link 0 stays still
-    report["drive"] = drive_mass.drive_entry(result.assembly, resting, drive, meshes)
+    try:  # the parts are verified: a torque that cannot be computed says why, never fails them
+        report["drive"] = drive_mass.drive_entry(result.assembly, resting, drive, meshes)
+    except ValueError as exc:
+        report["drive"] = {"error": str(exc)}
     if not walls["ok"]:
         thin = [n for n, w in walls["parts"].items() if not w["ok"]]
         warnings.append(f"walls under {printer.wall_mm:g} mm on more than 5 % of the surface of "
