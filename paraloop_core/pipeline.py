@@ -41,7 +41,7 @@ class Solution:
     loops: list[loops.Loop]
     singularity: np.ndarray  # (9,) min over the cycle of the singularity measure
     singularity_t: np.ndarray  # (9,) where the min occurs (inf allowed)
-    realization: Any = None  # realize.Realization or None
+    realization: Any = None  # certified.Realization or None
     fit: Any = None  # evolution.FitResult for method 'fit', else None
     end_effector: Any = None  # ee_certificate.EndEffectorRealization when the design has one
     #: JSON-ready: ``status`` found | not_found, ``attempts``, ``reason``/``fallback``

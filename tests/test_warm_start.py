@@ -13,7 +13,7 @@ from paraloop_core import design as design_mod
 from paraloop_core import pipeline
 from paraloop_core.design import Pose
 from paraloop_core.errors import RealizationError
-from paraloop_core.realization import realize
+from paraloop_core.realization import certified, realize
 from tests.independent.dense_check import check_result
 
 TV8 = Path(__file__).resolve().parent.parent / "assets" / "designs" / "tv8.json"
@@ -142,7 +142,7 @@ def test_consecutive_bar_bounds_are_computed_on_demand_and_sound(tv8):
     real = sol.realization
     assert "joint_lower" not in vars(real)  # not computed by the certificate
     lower = real.joint_lower
-    direct = realize.joint_bounds(real.joint_factors, real.points, real.joint_pairs,
+    direct = certified.joint_bounds(real.joint_factors, real.points, real.joint_pairs,
                                   real.length).lower - real.reading_gap
     assert np.allclose(lower, direct, rtol=1e-6, atol=1e-9 * real.length)
     # sound: never above the sampled distance of the two consecutive bars over the cycle

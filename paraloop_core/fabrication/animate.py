@@ -208,7 +208,7 @@ def animated_glb(joint_factors: np.ndarray, points: np.ndarray, radius: float, *
 
     ``joint_factors`` ``(6, 8)`` (:mod:`paraloop_core.algebra.dq` convention), ``points``
     ``(12, 3)`` ``S_0, E_0, ..., S_5, E_5`` at home and the bar ``radius`` of a
-    :class:`~paraloop_core.realization.realize.Realization`, design units; ``frames`` >= 2
+    :class:`~paraloop_core.realization.certified.Realization`, design units; ``frames`` >= 2
     keyframes over ``seconds`` > 0, at the parameters ``t`` ``(frames,)`` if given (e.g.
     :func:`scheduled_parameters`: a motor's speed schedule), else :func:`keyframe_parameters`
     (joint 0 at constant speed). Raises ValueError on bad input."""

@@ -34,7 +34,7 @@ from paraloop_core.fabrication import drive_mass, export, guide, sizing, thickne
 from paraloop_core.fabrication.export import ExportResult
 from paraloop_core.fabrication.parts import Assembly, PartSpec
 from paraloop_core.realization import realize
-from paraloop_core.realization.realize import Realization
+from paraloop_core.realization.certified import Realization
 
 #: Rebuilds allowed to shrink an automatically sized assembly onto the bed, and to grow it
 #: by :data:`_GROW` where a link falls apart (a bar notched through at a joint).

@@ -114,7 +114,7 @@ def limits(points: np.ndarray, pairs: np.ndarray, pair_lower: np.ndarray,
 
 
 def realization_limits(real: Any) -> Limits:
-    """:func:`limits` of a ``realize.Realization`` (its points, pairs and proven bounds)."""
+    """:func:`limits` of a ``certified.Realization`` (its points, pairs and proven bounds)."""
     return limits(real.points, real.pairs, real.pair_lower, real.joint_lower)
 
 

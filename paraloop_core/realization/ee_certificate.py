@@ -20,11 +20,11 @@ import numpy as np
 
 from paraloop_core.algebra import dq
 from paraloop_core.linkage import loops
-from paraloop_core.realization import realize
+from paraloop_core.realization import certified
+from paraloop_core.realization.certified import Realization
 from paraloop_core.realization.collision import THIN_PAIRS
 from paraloop_core.realization.endeffector import EndEffector
 from paraloop_core.realization.offsetting import OFFSET_PAIRS, cyclic_distance
-from paraloop_core.realization.realize import Realization
 
 #: Part code of P in the pair tables.
 MESH = -1
@@ -75,7 +75,7 @@ IS_STATIC = np.array([r[2][0] == r[2][1] for r in STEP4_ROWS])
 
 @dataclass(frozen=True)
 class EndEffectorRealization:
-    """Bars and pins as a :class:`realize.Realization` (its ``pairs`` omit the dropped bar
+    """Bars and pins as a :class:`certified.Realization` (its ``pairs`` omit the dropped bar
     ``S_3E_3``), the attached ``effector``, and the certificate of the end-effector rows:
     ``ee_labels``, ``ee_links`` ``(N, 2)``, ``ee_distance``/``ee_t`` ``(N,)`` (exact minima over
     the cycle; ``ee_exact`` False where P's bounding sphere already gives a certified lower
@@ -139,6 +139,6 @@ _ROW_BARS = np.array([(_bar_of(f), _bar_of(m)) for f, m, _, _ in STEP4_ROWS])  #
 
 
 def design_space_radii(dist: np.ndarray, rho: float) -> np.ndarray:
-    """Sec. 5.2 radii ``(6,)`` over all step-4 rows (:func:`realize.design_space_radii`): bar
+    """Sec. 5.2 radii ``(6,)`` over all step-4 rows (:func:`certified.design_space_radii`): bar
     vs bar splits D evenly, a bar keeps ``D - rho`` from a pin and ``D`` from P."""
-    return realize.design_space_radii(dist, rho, _ROW_BARS, IS_MESH)
+    return certified.design_space_radii(dist, rho, _ROW_BARS, IS_MESH)

@@ -20,6 +20,7 @@ import numpy as np
 
 from paraloop_core.errors import RealizationError
 from paraloop_core.realization import verify
+from paraloop_core.realization.certified import Realization
 from paraloop_core.realization.clearance import PairMotions, min_distance_batch, segment_distance
 from paraloop_core.realization.collision import pair_collisions
 from paraloop_core.realization.ee_certificate import (
@@ -46,7 +47,7 @@ from paraloop_core.realization.offsetting import (
     LoopMotions,
     OffsetSearch,
 )
-from paraloop_core.realization.realize import VERIFY_TOL, Realization, Search
+from paraloop_core.realization.realize import VERIFY_TOL, Search
 
 #: Consecutive-bar pairs without the replaced end-link bar ``S_3E_3`` (edge 6).
 _EE_JOINT_PAIRS = verify.JOINT_PAIRS[~np.any(verify.JOINT_PAIRS[:, :2] == 6, axis=1)]

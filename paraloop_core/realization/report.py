@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from paraloop_core.realization import radii, verify
-from paraloop_core.realization.realize import Realization
+from paraloop_core.realization.certified import Realization
 
 
 def _edge_label(e: int) -> str:
