@@ -26,6 +26,7 @@ from paraloop_core.design import DriveSettings
 from paraloop_core.fabrication import animate, export, printable, sizing
 from paraloop_core.fabrication.parts import PartSpec, design_scale
 from paraloop_core.linkage import drive_plan
+from paraloop_core.linkage.drive import TWO_PI
 
 #: Carving orders offered by the panel: target links first to last, each carved by the later.
 ORDER_PRESETS = {"base first": (0, 1, 2, 3, 4, 5), "end first": (3, 2, 4, 1, 5, 0)}
@@ -54,7 +55,7 @@ def animation_keyframes(real: Any, drive: DriveSettings, frames: int
     if plan.schedule is not None:
         t = animate.scheduled_parameters(real.joint_factors, plan.schedule, frames)
         return t, plan.cycle_time_s, f"motor joint {plan.motor} with its speed schedule"
-    theta = np.linspace(0.0, 2.0 * np.pi, frames)
+    theta = np.linspace(0.0, TWO_PI, frames)
     return (animate.motor_parameters(real.joint_factors, plan.motor, theta), plan.cycle_time_s,
             f"motor joint {plan.motor} at constant speed (no schedule meets the limits)")
 

@@ -1,6 +1,7 @@
-"""The studio's file transfers: *Save design*, *Export result*, *Animation* downloads and
-*Load design* uploads (a mixin of :class:`app.studio.Studio`, which supplies the state, the
-solution, notifications and update requests)."""
+"""The studio's file transfers: *Save design*, *Export result* and *Animation* downloads (the
+last two built on the worker: queued tasks) and *Load design* uploads (a mixin of
+:class:`app.studio.Studio`, which supplies the state, the solution, notifications and update
+requests)."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ from typing import Any
 
 from app.exports import animation_file, export_files, slug
 from app.state import StudioState, absolute_mesh, autosave_path_for, find_mesh
-from app.worker import FULL
+from app.worker import FRAME, FULL
 from paraloop_core import design as design_mod
 from paraloop_core import pipeline
 from paraloop_core.errors import DesignFileError
@@ -40,24 +41,31 @@ class FileTransfers:
         self.send_file(event.client, f"{slug(design.name)}.json", data.encode("utf-8"))
 
     def download_export(self, event: Any) -> None:
-        sol = self.solution
-        if sol is None:
-            self.notify("Nothing to export", self.error or "no solution yet", error=True)
-            return
-        if self.error:
-            self.notify("Exporting the last valid design", self.error, error=True)
-        for name, data in export_files(sol):
-            self.send_file(event.client, name, data)
+        self.state.add_task("result", event.client)  # built on the worker: the result JSON
+        self.request(FRAME)  # plans the drive (20 - 400 ms), too much for a callback
 
     def download_animation(self, event: Any) -> None:
+        self.state.add_task("animation", event.client)  # meshes, plan, 240 frames: the worker
+        self.request(FRAME)
+
+    def send_download(self, task: str, client: Any) -> None:
+        """Build and send a queued ``result`` or ``animation`` download (worker thread)."""
+        sol = self.solution
         try:
-            if self.solution is None:
+            if sol is None:
                 raise ValueError(self.error or "no solution yet")
-            name, data = animation_file(self.solution)
+            if task == "result":
+                if self.error:
+                    self.notify("Exporting the last valid design", self.error, error=True)
+                files = export_files(sol)
+            else:
+                files = [animation_file(sol)]
         except ValueError as exc:
-            self.notify("Nothing to animate", str(exc), error=True)
+            what = "Nothing to export" if task == "result" else "Nothing to animate"
+            self.notify(what, str(exc), error=True)
             return
-        self.send_file(event.client, name, data)
+        for name, data in files:
+            self.send_file(client, name, data)
 
     def upload_design(self, event: Any) -> None:
         upload = event.target.value

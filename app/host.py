@@ -50,10 +50,10 @@ class StudioHost(Protocol):
         """*Save design*: the current design file to the clicking browser."""
 
     def download_export(self, event: Any) -> None:
-        """*Download result*: the result files to the clicking browser."""
+        """*Download result*: queue the result files for the clicking browser."""
 
     def download_animation(self, event: Any) -> None:
-        """*Animation*: the realized loop as an animated glTF to the clicking browser."""
+        """*Animation*: queue the realized loop as an animated glTF for the clicking browser."""
 
     def upload_design(self, event: Any) -> None:
         """*Load design*: replace the design with an uploaded file."""

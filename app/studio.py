@@ -168,6 +168,8 @@ class Studio(FileTransfers):
             for task, arg in self.state.take_tasks():  # after the update
                 if task == "mesh":
                     self.panels.effector.check_mesh(arg)
+                elif task in ("result", "animation"):
+                    self.send_download(task, arg)
                 elif not self.jobs.start(task, lambda task=task, arg=arg:
                                          self.fabrication.run(task, arg)):
                     self.notify(f"Cannot start the {task}", f"the {self.jobs.busy} is still "

@@ -305,11 +305,13 @@ def test_save_export_and_upload(studio, tmp_path):
     saved = design_mod.design_from_dict(json.loads(data))
     assert np.allclose(saved.pose_array[0], studio.state.design.pose_array[0])
     click(studio.panels.export)
+    settle(studio)  # built on the worker
     name, data = studio.downloads[-1]
     result = json.loads(data)
     assert name == "paraloop-result.json" and result["format"] == "paraloop-result"
     assert len(result["loops"]) == 9
     click(studio.panels.animation)  # the realized loop over one cycle, animated glTF
+    settle(studio)
     name, data = studio.downloads[-1]
     assert name.endswith("-cycle.glb") and data[:4] == b"glTF" and len(data) > 10_000
     # a broken file: error notification, design kept

@@ -83,15 +83,9 @@ class Bar:
         self.total, self.unit, self.start, self.shown = total, unit, time.perf_counter(), False
 
     def __call__(self, done: int) -> None:
-        width = 30
-        fill = width * done // self.total
         rate = done / max(time.perf_counter() - self.start, 1e-9)
-        sys.stderr.write(f"\r[{'#' * fill}{'.' * (width - fill)}] {done}/{self.total} "
-                         f"{self.unit} {rate:.1f}/s")
+        outputs.draw_bar(done / self.total, f"{done}/{self.total} {self.unit} {rate:.1f}/s")
         self.shown = done < self.total
-        if not self.shown:
-            sys.stderr.write("\n")
-        sys.stderr.flush()
 
     def clear(self) -> None:
         """Erase a drawn bar so that a message starts on a clean line (terminals only)."""

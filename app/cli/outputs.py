@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import os
+import sys
 import tempfile
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
@@ -180,3 +181,13 @@ def add_seed(p: argparse.ArgumentParser, seed_help: str) -> None:
     """The ``--seed`` option shared by the ``validate`` commands."""
     p.add_argument("--seed", type=int_range(0, 2**32 - 1), default=0,
                    help=f"{seed_help} (0..2^32-1)")
+
+
+def draw_bar(fill: float, text: str, width: int = 30) -> None:
+    """A progress bar on stderr, ``[#####.....] text``, redrawn in place; ``fill`` in [0, 1]
+    (a new line once it is full)."""
+    n = min(int(width * fill), width)
+    sys.stderr.write(f"\r[{'#' * n}{'.' * (width - n)}] {text}")
+    if fill >= 1.0:
+        sys.stderr.write("\n")
+    sys.stderr.flush()

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 import time
 from pathlib import Path
 
@@ -16,13 +15,7 @@ from paraloop_core.validation import fig16
 
 def _progress_bar(start: float):
     def show(fraction: float, message: str) -> None:
-        width = 30
-        fill = int(width * fraction)
-        elapsed = time.perf_counter() - start
-        sys.stderr.write(f"\r[{'#' * fill}{'.' * (width - fill)}] {message} {elapsed:.0f} s")
-        if fraction >= 1.0:
-            sys.stderr.write("\n")
-        sys.stderr.flush()
+        outputs.draw_bar(fraction, f"{message} {time.perf_counter() - start:.0f} s")
 
     return show
 

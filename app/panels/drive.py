@@ -26,6 +26,7 @@ from app.worker import FRAME, FULL, PREVIEW, NewestWorker
 from paraloop_core import design_checks
 from paraloop_core.design import Design, DriveSettings
 from paraloop_core.fabrication.drive_mass import material
+from paraloop_core.linkage.drive import TWO_PI
 from paraloop_core.linkage.drive_plan import DrivePlan, plan_drive
 
 if TYPE_CHECKING:
@@ -36,7 +37,6 @@ MOTORS = (RECOMMENDED, *(f"joint {j}" for j in range(6)))
 JOINT_COLORS = ("#d62728", "#2ca02c", "#1f77b4", "#bcbd22", "#9467bd", "#17becf")
 NO_PARTS = ("*Motor torque: run Fabrication (Export all) to compute the torque from the "
             "parts' masses.*")
-TWO_PI = 2.0 * np.pi
 #: Seconds without a preview or full update before a plan is computed: a plan takes 20-25 ms
 #: of the shared interpreter, so it waits until the user lets go rather than slow a drag.
 QUIET = 0.15

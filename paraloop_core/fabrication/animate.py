@@ -91,12 +91,12 @@ def motor_parameters(joint_factors: np.ndarray, motor: int, theta: np.ndarray) -
     (``t = inf``) where theta is a multiple of 2 pi."""
     _, a, b = drive.norm_roots(_finite_array(joint_factors, (6, 8), "joint_factors"))
     m = drive.check_index("motor", motor, 0, 5)
-    half = 0.5 * _finite_array(theta, np.shape(theta), "theta")
-    if half.ndim != 1:
-        raise ValueError(f"theta must be a 1-D array of angles, got shape {half.shape}")
-    home = np.abs(np.sin(half)) <= 4.0 * np.finfo(float).eps
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(home, np.inf, a[m] - b[m] * np.cos(half) / np.sin(half))
+    theta = _finite_array(theta, np.shape(theta), "theta")
+    if theta.ndim != 1:
+        raise ValueError(f"theta must be a 1-D array of angles, got shape {theta.shape}")
+    t = drive.gear(a, b, m, theta)[0]
+    # home at both ends of a turn: gear's t is -inf at 0 but ~1e16 b at 2 pi (sin(pi) != 0)
+    return np.where(np.abs(np.sin(0.5 * theta)) <= 4.0 * np.finfo(float).eps, np.inf, t)
 
 
 def scheduled_parameters(joint_factors: np.ndarray, schedule: SpeedSchedule, frames: int

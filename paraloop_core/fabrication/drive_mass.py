@@ -76,7 +76,7 @@ def drive_entry(asm: Assembly, resting_link: int, settings: DriveSettings | None
         motor = drive.recommend_motor(asm.joint_factors, resting_link).motor
     mass, centers = link_mass_properties(asm.parts, settings.density_kg_m3, meshes)
     peak = gravity_torque(asm, mass, centers, resting_link, motor)
-    theta = np.arange(CURVE_SAMPLES) * (2.0 * np.pi / CURVE_SAMPLES)
+    theta = np.arange(CURVE_SAMPLES) * (drive.TWO_PI / CURVE_SAMPLES)
     curve = gravity_torque(asm, mass, centers, resting_link, motor, theta)
     return {"motor": int(motor), "motor_chosen": "recommended" if settings.motor is None
             else "design", "resting_link": int(resting_link),

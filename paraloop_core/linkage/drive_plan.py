@@ -18,7 +18,7 @@ import numpy as np
 
 from paraloop_core.linkage import drive, schedule
 
-TWO_PI = 2.0 * np.pi
+TWO_PI = drive.TWO_PI
 SEARCH_SAMPLES = 32  #: samples per family of the coarse grid the chosen limits are searched on
 #: chosen max_speed_ratio = max(RATIO_MARGIN R0, min(sqrt(W R0), RATIO_SPAN R0))
 RATIO_MARGIN, RATIO_SPAN = 1.05, 2.0

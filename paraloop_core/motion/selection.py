@@ -80,8 +80,8 @@ def smooth_drive_scores(c_monic: np.ndarray, loop: int = 0, motor: int | None = 
     generic) and the :func:`factor.all_factorizations_batch` codes ``(...)``; ``loop`` 0..8,
     ``motor`` joint 0..5 or None (the best). See the module docstring."""
     loop = _loop_index(loop)
-    if motor is not None and (isinstance(motor, bool) or motor not in range(6)):
-        raise ValueError(f"motor must be None or a joint index 0..5, got {motor!r}")
+    if motor is not None:
+        drive.check_index("motor", motor, 0, 5)  # before the batch factorization
     facts = factor.all_factorizations_batch(c_monic)
     jf = loops.loop_joint_factors(facts.factors)[..., loop, :, :]
     good = (facts.code == 0) & np.isfinite(jf).all(axis=(-2, -1))
