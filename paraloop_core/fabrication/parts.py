@@ -1,87 +1,55 @@
-"""Printable link parts (manifold3d solids in mm) with joint hardware.
+"""The printed links (manifold3d solids, mm, home pose, base frame).
 
-Scale: ``scale = size_mm / (longest side of the bounding box of the 12 polyline points)`` maps
-design units to mm; parts are built in the home configuration (t = inf, base frame).
+Link i is its bar and the bosses of its two joints (:mod:`joints`):
 
-Joint i (axis A_i, pin ``E_i S_{i+1}`` of length L, unit ``w`` from ``E_i`` to ``S_{i+1}``,
-axial coordinate ``s`` from ``E_i``) with boss radius R, boss length b, clearance c:
+* the **bar** ``S_i E_i``: a regular hexagonal prism of corner radius ``R_i`` (the sizing's),
+  one flat face towards the link's print-down direction ``down_i`` (:mod:`layout`); with an
+  end-effector, link 3 is the bars ``S_3 L``, ``R E_3`` and P's solid (:mod:`endlink`);
+* a **fillet** where the bar meets each boss: the convex hull of the boss and the bar's first
+  ``B - R`` mm, so it stays within the boss's radius of the pin;
+* the **joint zones** are cleared for the neighbour: everything of link j within
+  ``reach + c + eps`` of joint j's axis on the neighbour's side of the split (and past the
+  neighbour's boss, where its hardware sits) is cut away, so inside the zone each link is a
+  solid of revolution about the shared axis and the two never meet at any joint angle;
+* the **bosses** (cylinders about the joint axis), then the bores, the head's counterbore and
+  the nut's hexagonal trap (or the rod's press fit);
+* the **print flat**: everything past the bar's down face is cut off (bosses become flat on the
+  bed); :mod:`layout` chooses ``down_i`` so that the bores keep their walls.
 
-* link i: boss ``s in [-b, m - c/2]`` and a pin of radius r fixed in it, reaching to the far
-  end of link i+1's boss (``s = L + b``; print-in-place: on through an axial gap c to a head of
-  radius R, which captures link i+1);
-* link i+1: boss ``s in [m + c/2, L + b]`` with a bore of radius ``r + c`` through it; the
-  boss ends facing each other act as spacers with the axial gap c.
-
-The split ``m`` (:func:`_split`) is per joint: a bar that leans back over the pin runs through
-the zone beside the other link's boss, and the zone would notch it (a weak bar and a hairline
-gap). So ``m`` moves away from such a bar, as far as both bars allow, else to the middle of
-the conflict (``Zone.notch`` then says by how much each bar still reaches over).
-
-Each link body (its bar as a capsule of radius rho, or a carved mesh) is cut by both **joint
-zones** ``Z`` (cylinder of radius R about the axis covering all hardware) before the hardware is
-added. So inside ``Z`` each part is a solid of revolution about the shared axis (the joint's
-relative motion is a rotation about it): the two parts there never meet, with radial gap c
-(pin/bore) and axial gap c (boss ends), for every joint angle. Verification uses this.
+Every part lies in its ``capsules`` (segments ``(n, 2, 3)``, ``radii`` ``(n,)``, tagged with
+the joint whose zone they belong to, -1 for the body): the verification's broad phase.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field
 
 import manifold3d as m3d
 import numpy as np
 
 from paraloop_core.errors import FabricationError
+from paraloop_core.fabrication import profiles
+from paraloop_core.fabrication.joints import Joint
 from paraloop_core.fabrication.voxelspace import point_segment_distance
-from paraloop_core.linkage import loops
 
-MIN_WALL_MM = 0.8  # default thinnest boss wall (typical FDM: 2 perimeters); PartSpec.wall_mm
-
-
-@dataclass(frozen=True)
-class PartSpec:
-    """Fabrication parameters in mm (None: derived, see :func:`resolve_spec`)."""
-
-    size_mm: float = 150.0
-    clearance_mm: float = 0.3
-    rho_mm: float | None = None
-    boss_radius_mm: float | None = None
-    pin_radius_mm: float | None = None
-    boss_length_mm: float | None = None
-    print_in_place: bool = False
-    segments: int = 48
-    #: thinnest wall: around a bore, and each boss's axial thickness where the pin is long
-    #: enough for two (the split moves to keep it; sizing makes the pins long enough)
-    wall_mm: float = MIN_WALL_MM
-
-
-@dataclass(frozen=True)
-class Zone:
-    """Joint zone in mm: cylinder about ``origin + s w`` (``origin = E_i``, ``w`` towards
-    ``S_{i+1}``, pin ``length``), ``s in [s0, s1]``, radius ``radius``."""
-
-    origin: np.ndarray
-    w: np.ndarray
-    length: float
-    s0: float
-    s1: float
-    radius: float
-    eps: float
-    gap: float
-    #: axial ``s`` where the two bosses meet (their gap ``c`` centred on it)
-    split: float
-    #: mm by which link i's / link i+1's bar still reaches into the other's boss region
-    notch: tuple[float, float]
-
-    def at(self, s: float) -> np.ndarray:
-        return self.origin + s * self.w
+#: Polygon segments of round solids (bosses, bores) and the zone margin they need.
+SEGMENTS = 48
+#: Margin (mm) of every cut past what it clears: the polygon error of the round solids.
+EPS_MM = 0.05
+#: Extra clearance (mm) of a recess for hardware (head, nut) over the hardware.
+SEAT_MM = 0.3
+#: Thinnest printed wall anywhere (mm): sheets of an open end-effector are this thick.
+MIN_WALL_MM = 0.8
 
 
 @dataclass(frozen=True)
 class Part:
-    """One printable link: ``manifold`` (mm, home frame) inside the union of capsules
+    """One printed part: ``manifold`` (mm, home frame) inside the union of capsules
     ``capsules`` ``(n, 2, 3)`` with ``radii`` ``(n,)``; ``joint`` ``(n,)`` tags each capsule
-    with the joint whose hardware it bounds (-1: the body)."""
+    with the joint whose zone it belongs to (-1: the body); ``link`` the loop link it moves
+    with (-1: the base on the table); ``down`` ``(3,)`` the face laid on the bed (home frame,
+    unit; zero: :mod:`layout` chooses); ``role`` ``"link"``, ``"pin"``, ``"cap"``,
+    ``"base"``."""
 
     name: str
     link: int
@@ -89,275 +57,211 @@ class Part:
     capsules: np.ndarray
     radii: np.ndarray
     joint: np.ndarray
+    down: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    role: str = "link"
 
 
-@dataclass(frozen=True)
-class Assembly:
-    """The six parts, the mm-per-design-unit ``scale``, the resolved ``spec``, the joint
-    ``zones`` and the loop's ``joint_factors`` (for the motion)."""
-
-    parts: tuple[Part, ...]
-    scale: float
-    spec: PartSpec
-    zones: tuple[Zone, ...]
-    joint_factors: np.ndarray
-
-
-def design_scale(points: np.ndarray, size_mm: float) -> float:
-    """mm per design unit so that the polyline's longest bounding-box side is ``size_mm``."""
-    if not (np.isfinite(size_mm) and size_mm > 0):
-        raise FabricationError(f"size_mm must be > 0, got {size_mm}", "bad-parameters")
-    ext = float(np.max(np.ptp(np.asarray(points, float), axis=0)))
-    if not ext > 0:
-        raise FabricationError("the linkage has zero extent", "bad-parameters")
-    return size_mm / ext
-
-
-def resolve_spec(spec: PartSpec, radius: float, scale: float) -> PartSpec:
-    """Fill the derived sizes and validate. Defaults keep the printed geometry inside the
-    realized (certified) radius minus clearances: bar ``rho = radius * scale - clearance``,
-    boss radius ``radius * scale - clearance / 2`` (bosses then end at the joint points:
-    boss length 0), pin ``min(boss / 2, boss - clearance - wall_mm)``. Raises
-    :class:`FabricationError` (``bad-parameters``)."""
-    c, wall = spec.clearance_mm, spec.wall_mm
-    if not (np.isfinite(c) and c >= 0):
-        raise FabricationError(f"clearance must be >= 0 mm, got {c}", "bad-parameters")
-    if not (np.isfinite(wall) and wall > 0):
-        raise FabricationError(f"wall must be > 0 mm, got {wall}", "bad-parameters")
-    if spec.segments < 8:
-        raise FabricationError("segments must be >= 8", "bad-parameters")
-    rho = spec.rho_mm if spec.rho_mm is not None else radius * scale - c
-    boss = spec.boss_radius_mm if spec.boss_radius_mm is not None else rho + c / 2
-    pin = spec.pin_radius_mm if spec.pin_radius_mm is not None else \
-        min(0.5 * boss, boss - c - wall)
-    length = spec.boss_length_mm if spec.boss_length_mm is not None else 0.0
-    for name, v in (("bar radius", rho), ("pin radius", pin), ("boss radius", boss)):
-        if not (np.isfinite(v) and v > 0):
-            # smallest size giving a 0.5 mm pin with the default proportions
-            need = spec.size_mm * (2 * (c + wall) + c / 2) / max(radius * scale, 1e-9)
-            raise FabricationError(
-                f"{name} must be > 0 mm, got {v:.4g}: the realized bars are only "
-                f"{radius * scale:.3g} mm thick at this size; use a size of at least "
-                f"{np.ceil(need):.0f} mm, a larger realization radius or explicit radii",
-                "bad-parameters")
-    if not (np.isfinite(length) and length >= 0):
-        raise FabricationError(f"boss length must be >= 0 mm, got {length}", "bad-parameters")
-    if pin + c + wall > boss + 1e-9:
-        raise FabricationError(
-            f"pin radius {pin:.3g} + clearance {c:.3g} + wall {wall:g} mm exceeds the boss "
-            f"radius {boss:.3g} mm", "bad-parameters")
-    if not rho < boss:
-        raise FabricationError(f"bar radius {rho:.3g} mm must be below the boss radius "
-                               f"{boss:.3g} mm", "bad-parameters")
-    return replace(spec, rho_mm=rho, boss_radius_mm=boss, pin_radius_mm=pin,
-                   boss_length_mm=length)
-
-
-def _frame_to(p0: np.ndarray, p1: np.ndarray) -> np.ndarray:
-    """3x4 affine map taking the z axis segment [0, |p1-p0|] onto ``[p0, p1]``."""
-    d = p1 - p0
+def frame_to(p0: np.ndarray, p1: np.ndarray, roll: np.ndarray | None = None) -> np.ndarray:
+    """``(3, 4)`` affine map taking the z axis segment ``[0, |p1 - p0|]`` onto ``[p0, p1]``;
+    its x axis along ``roll`` (projected off the segment) when given."""
+    d = np.asarray(p1, float) - p0
     z = d / np.linalg.norm(d)
-    x = np.cross(z, [1.0, 0, 0] if abs(z[0]) < 0.9 else [0, 1.0, 0])
+    ref = np.asarray(roll, float) if roll is not None else \
+        np.array([1.0, 0, 0]) if abs(z[0]) < 0.9 else np.array([0, 1.0, 0])
+    x = ref - (ref @ z) * z
+    if np.linalg.norm(x) < 1e-9:
+        x = np.cross(z, [1.0, 0, 0] if abs(z[0]) < 0.9 else [0, 1.0, 0])
     x /= np.linalg.norm(x)
     return np.column_stack([x, np.cross(z, x), z, p0])
 
 
-def cylinder(p0: np.ndarray, p1: np.ndarray, radius: float, segments: int) -> m3d.Manifold:
-    """Solid cylinder of ``radius`` with flat ends at ``p0``, ``p1`` (mm)."""
-    h = float(np.linalg.norm(p1 - p0))
-    return m3d.Manifold.cylinder(h, radius, radius, segments).transform(_frame_to(p0, p1))
+def cylinder(p0: np.ndarray, p1: np.ndarray, radius: float, segments: int = SEGMENTS,
+             roll: np.ndarray | None = None) -> m3d.Manifold:
+    """Prism of ``segments`` sides (a cylinder for many) of corner ``radius`` with flat ends
+    at ``p0``, ``p1`` (mm); with ``roll`` a corner points along it."""
+    h = float(np.linalg.norm(np.asarray(p1, float) - p0))
+    return m3d.Manifold.cylinder(h, radius, radius, segments).transform(frame_to(p0, p1, roll))
 
 
-def capsule(p0: np.ndarray, p1: np.ndarray, radius: float, segments: int) -> m3d.Manifold:
-    """Convex hull of two spheres of ``radius`` about ``p0``, ``p1``, tessellated in the bar's
-    frame: world-aligned vertex rings would lie in faces through an end point (the end link's
-    bars end at vertices of P) and give degenerate, non-watertight unions."""
-    s = m3d.Manifold.sphere(radius, segments)
-    h = float(np.linalg.norm(np.asarray(p1) - p0))
-    if h == 0.0:
-        return s.translate(tuple(p0))
-    return m3d.Manifold.batch_hull([s, s.translate((0.0, 0.0, h))]).transform(_frame_to(p0, p1))
+def hex_bar(p0: np.ndarray, p1: np.ndarray, radius: float, down: np.ndarray) -> m3d.Manifold:
+    """Regular hexagonal prism of corner ``radius`` from ``p0`` to ``p1`` with a flat face
+    whose outward normal is ``down`` (projected off the bar)."""
+    d = np.asarray(p1, float) - p0
+    u = d / np.linalg.norm(d)
+    n = np.asarray(down, float) - (np.asarray(down, float) @ u) * u
+    n = n / np.linalg.norm(n) if np.linalg.norm(n) > 1e-9 else frame_to(p0, p1)[:, 0]
+    # manifold's hexagon has a corner on +x: turn it by 30 deg so a face normal is on +x
+    corner = np.cos(np.pi / 6) * n + np.sin(np.pi / 6) * np.cross(u, n)
+    return cylinder(p0, p1, radius, 6, corner)
 
 
-def _head_length(spec: PartSpec) -> float:
-    return max(1.0, 0.5 * spec.boss_radius_mm)
+def _axis(j: Joint, s0: float, s1: float, r: float, sides: int = SEGMENTS) -> m3d.Manifold:
+    return cylinder(j.at(s0), j.at(s1), r, sides)
 
 
-def joint_zones(joint_factors: np.ndarray, pts: np.ndarray, spec: PartSpec,
-                bars: list[np.ndarray] | None = None) -> list[Zone]:
-    """The six joint zones (mm) of the polyline ``pts`` ``(12, 3)`` (mm) with the resolved
-    ``spec``; ``bars[i]`` ``(n, 2, 3)`` (mm): link i's bars in order from ``S_i`` to ``E_i``
-    (default the bar ``S_i E_i``), whose directions at the joints place the splits."""
-    axes = loops.factor_axes(joint_factors)
-    bars = bars if bars is not None else [pts[[2 * i, 2 * i + 1]][None] for i in range(6)]
-    out = []
-    head = spec.clearance_mm + _head_length(spec) if spec.print_in_place else 0.0
-    # Zone margin: beats the polygon error r (1 - cos(pi/n)) of the cylinders (module doc).
-    eps = max(0.05, 3.0 * (spec.boss_radius_mm + 1.0) * (1.0 - np.cos(np.pi / spec.segments)))
-    for i in range(6):
-        e, s = pts[2 * i + 1], pts[(2 * i + 2) % 12]
-        length = float(np.linalg.norm(s - e))
-        w = (s - e) / length if length > 1e-9 else axes[i, :3]
-        lower, upper = bars[i][-1], bars[(i + 1) % 6][0]  # link i's bar ends at E_i, ...
-        split, notch = _split(length, lower[0] - lower[1], upper[1] - upper[0], w, spec, eps, i)
-        out.append(Zone(e, w, length, -spec.boss_length_mm, length + spec.boss_length_mm + head,
-                        spec.boss_radius_mm, eps, spec.clearance_mm, split, notch))
-    return out
+def boss(j: Joint, upper: bool, n: int = SEGMENTS) -> m3d.Manifold:
+    """The boss of link j (``upper`` False) or link j+1 at joint ``j``."""
+    s0, s1 = j.upper if upper else j.lower
+    return _axis(j, s0, s1, j.boss_radius, n)
 
 
-def _split(length: float, lower: np.ndarray, upper: np.ndarray, w: np.ndarray, spec: PartSpec,
-           eps: float, joint: int) -> tuple[float, tuple[float, float]]:
-    """Split ``m`` of a joint (module docstring) and the notches left: ``lower`` is link i's
-    bar from ``E_i`` (vector, mm), ``upper`` link i+1's bar from ``S_{i+1}``. A bar of radius
-    rho leaving the axis at axial slope ``a`` and radial slope ``r`` has material within the
-    zone cut's radius ``R + c + eps`` only up to the axial reach
-    ``a (R + c + eps + rho) / r + rho`` (at most its length), which must stay on its own side
-    of the split."""
-    c, b, rho = spec.clearance_mm, spec.boss_length_mm, spec.rho_mm
-
-    def reach(bar: np.ndarray, toward: np.ndarray) -> float:
-        n = float(np.linalg.norm(bar))
-        a = float(bar @ toward) / n if n > 0 else 0.0
-        if a <= 0.0:
-            return rho  # leans away: only the bar's rounded end
-        r = np.sqrt(max(1.0 - a * a, 0.0))
-        return a * min(n, (spec.boss_radius_mm + c + eps + rho) / max(r, 1e-12)) + rho
-
-    floor, ceil = c / 2 - b + 4 * eps, length + b - c / 2 - 4 * eps  # bosses >= 4 eps long
-    if floor > ceil:
-        raise FabricationError(
-            f"joint {joint}: pin {length:.3g} mm is too short for bosses with clearance {c} mm; "
-            "raise the offsets or the boss length", "bad-parameters")
-    if 2 * spec.wall_mm <= ceil - floor + 8 * eps + 1e-9:  # room for two bosses a wall thick
-        floor, ceil = c / 2 - b + spec.wall_mm, length + b - c / 2 - spec.wall_mm
-    lo = reach(lower, w) + c / 2 + eps  # link i's bar needs m >= lo
-    hi = length - reach(upper, -w) - c / 2 - eps  # link i+1's bar needs m <= hi
-    m = float(np.clip(length / 2, lo, hi) if lo <= hi else (lo + hi) / 2)
-    m = float(np.clip(m, floor, ceil))
-    return m, (max(0.0, lo - m), max(0.0, m - hi))
-
-
-def _hardware(z: Zone, spec: PartSpec, upper: bool) -> list[tuple]:
-    """Hardware pieces of one side of a joint: ``(p0, p1, radius, is_bore)`` cylinders."""
-    c, b, length, at = spec.clearance_mm, spec.boss_length_mm, z.length, z.at
-    mid = z.split
-    # Without print-in-place the bore is blind: it stops c short of the boss's far end, where
-    # this link's bar leaves the axis, and the pin stops c short of the bore's bottom. A bore
-    # through that end would cut a bar leaving nearly along the axis off its boss (tv8's
-    # link 4 fell apart in two pieces). Assembly: from the mid-plane side.
+def zone_cut(j: Joint, upper: bool, c: float, n: int = SEGMENTS) -> m3d.Manifold:
+    """What a link's body loses at joint ``j``: within ``reach + c + eps`` of the axis, on the
+    neighbour's side of the split and on past the joint's far end (the neighbour's boss and
+    hardware, with ``c`` of room)."""
+    lo, hi = j.extent
+    r = j.reach + c + EPS_MM
     if upper:
-        return [(at(mid + c / 2), at(length + b), spec.boss_radius_mm, False),
-                (at(mid + c / 2 - 1.0), at(length + b + (1.0 if spec.print_in_place else -c)),
-                 spec.pin_radius_mm + c, True)]
-    pieces = [(at(-b), at(mid - c / 2), spec.boss_radius_mm, False)]
-    start = (mid - c / 2 - b) / 2  # pin root: middle of its own boss
-    if spec.print_in_place:
-        end, head = length + b + c, _head_length(spec)
-        pieces += [(at(start), at(end + head / 2), spec.pin_radius_mm, False),
-                   (at(end), at(end + head), spec.boss_radius_mm - 2 * z.eps, False)]
-    else:
-        pieces.append((at(start), at(length + b - 2 * c), spec.pin_radius_mm, False))
-    return pieces
+        return _axis(j, lo - c - 1.0, j.split + j.gap / 2, r, n)
+    return _axis(j, j.split - j.gap / 2, hi + c + 1.0, r, n)
 
 
-def build_assembly(joint_factors: np.ndarray, points: np.ndarray, radius: float,
-                   spec: PartSpec = PartSpec(), bodies: list[np.ndarray] | None = None,
-                   extras: dict[int, list[tuple[m3d.Manifold, np.ndarray, float]]] | None = None,
-                   end_link: tuple[np.ndarray, m3d.Manifold] | None = None) -> Assembly:
-    """Six parts from the loop ``joint_factors`` ``(6, 8)``, polyline ``points`` ``(12, 3)``
-    and bar ``radius`` (design units). ``bodies``: optional carved bodies per link as
-    ``(vertices (V, 3) design units, faces)`` pairs, joined with the bar (None: bar only).
-    ``extras``: per link, additional solids in mm with a bounding capsule ``(2, 3)`` and radius
-    (grounding). ``end_link``: link 3's bars ``(n, 2, 3)`` (design units; replacing ``S_3 E_3``)
-    and a solid in mm joined with them (the end-effector P, :mod:`endlink`), bounded by
-    :func:`principal_capsules`. Every part is checked to be a valid, non-empty manifold."""
-    jf = np.asarray(joint_factors, float)
-    pts = np.asarray(points, float)
-    if jf.shape != (6, 8) or pts.shape != (12, 3) or not np.all(np.isfinite(pts)):
-        raise FabricationError("need joint factors (6, 8) and finite points (12, 3)",
-                               "bad-parameters")
-    scale = design_scale(pts, spec.size_mm)
-    spec = resolve_spec(spec, float(radius), scale)
-    pmm = pts * scale
-    bars = [pmm[[2 * i, 2 * i + 1]][None] for i in range(6)]
-    if end_link is not None:
-        bars[3] = np.asarray(end_link[0], float) * scale
-    zones = joint_zones(jf, pmm, spec, bars)
-    n = spec.segments
-    parts = []
-    for i in range(6):
-        s_i, e_i = pmm[2 * i], pmm[2 * i + 1]
-        segs = bars[i]
-        body = m3d.Manifold.batch_boolean([capsule(p0, p1, spec.rho_mm, n) for p0, p1 in segs],
-                                          m3d.OpType.Add)
-        caps = [(p0, p1, spec.rho_mm, -1) for p0, p1 in segs]
-        if i == 3 and end_link is not None:
-            body = body + end_link[1]
-            caps += principal_capsules(end_link[1])
-        if bodies is not None and bodies[i] is not None:
-            # The bar always stays (it ties the carved shape to the joints); carved islands
-            # not touching it would print as loose pieces, so they are dropped.
-            carved = _mesh_manifold(bodies[i][0] * scale, bodies[i][1])
-            touching = [c for c in carved.decompose() if not (c ^ body).is_empty()]
-            body = m3d.Manifold.batch_boolean([body, *touching], m3d.OpType.Add)
-            if touching:
-                caps += _body_capsules(m3d.Manifold.batch_boolean(touching, m3d.OpType.Add),
-                                       s_i, e_i)
-        for z, upper in ((zones[i], False), (zones[(i - 1) % 6], True)):
-            body = body - zone_cut(z, upper, n)
-        bores, hubs = [], []
-        for j, upper in ((i, False), ((i - 1) % 6, True)):
-            for p0, p1, r, is_bore in _hardware(zones[j], spec, upper):
-                if is_bore:
-                    bores.append(cylinder(p0, p1, r, n))
-                else:
-                    hubs.append(cylinder(p0, p1, r, n))
-                    body = body + hubs[-1]
-                    caps.append((p0, p1, r, j))
-        for solid, cap, r in (extras or {}).get(i, []):
-            body = body + solid
-            caps.append((cap[0], cap[1], r, -1))
-        for bore in bores:
-            body = body - bore
-        body = _joined(body, hubs, i)
-        _check_manifold(body, f"link {i}")
-        parts.append(Part(f"link_{i}", i, body, np.array([[c[0], c[1]] for c in caps]),
-                          np.array([c[2] for c in caps]), np.array([c[3] for c in caps])))
-    return Assembly(tuple(parts), scale, spec, tuple(zones), jf)
+def holes(j: Joint, upper: bool, far: float, n: int = SEGMENTS) -> m3d.Manifold:
+    """Bore, recess and, for the grounding rod, the way out, of one side of joint ``j``;
+    ``far`` (mm) how far past the joint the pockets must run to leave any bar end."""
+    lo, hi = j.extent
+    bore = j.bore[1 if upper else 0]
+    cuts = [_axis(j, lo - far, hi + far, bore, n)]
+    if j.kind in profiles.FASTENERS:
+        f = profiles.FASTENERS[j.kind]
+        if upper:  # the nut's trap, a hexagonal prism, then out through anything beyond
+            r = (f.nut_af_mm + SEAT_MM) / np.sqrt(3.0)
+            cuts.append(_axis(j, j.upper[1] - j.recess[1], hi + far, r, 6))
+        else:  # the head's counterbore
+            r = f.head_d_mm / 2 + SEAT_MM
+            cuts.append(_axis(j, lo - far, j.lower[0] + j.recess[0], r, n))
+    if j.kind in ("rod", "printed-pin"):  # the cap or head sits outside the boss: room for it
+        for p in j.pieces:
+            if p.printed and p.role != "pin":
+                cuts.append(_axis(j, p.s0 - EPS_MM - (far if p.s0 < 0 else 0),
+                                  p.s1 + EPS_MM + (far if p.s1 > j.length else 0),
+                                  p.radius + j.gap + EPS_MM, n))
+    return m3d.Manifold.batch_boolean(cuts, m3d.OpType.Add)
 
 
-def _joined(body: m3d.Manifold, hubs: list[m3d.Manifold], link: int) -> m3d.Manifold:
-    """``body`` without loose shards: where the cuts split it (a carved island cut off by a
-    joint zone), only the piece holding the joint hardware ``hubs`` stays. Raises
-    :class:`FabricationError` if the hardware itself ends up in separate pieces."""
+def fillet_length(j: Joint, radius: float) -> float:
+    """Length (mm) of the bar a fillet takes in: ``B - R`` (at least 0.5 mm)."""
+    return max(j.boss_radius - radius, 0.5)
+
+
+def fillet(j: Joint, upper: bool, bar: tuple[np.ndarray, np.ndarray], radius: float,
+           down: np.ndarray, n: int = SEGMENTS) -> m3d.Manifold:
+    """Hull of a boss and the first ``B - R`` mm of the bar (``bar`` = (joint point, other
+    end)) that meets it: the web that spreads the bar's load into the boss."""
+    p0, p1 = bar
+    length = float(np.linalg.norm(p1 - p0))
+    f = min(fillet_length(j, radius), 0.5 * length)
+    stub = hex_bar(p0, p0 + (p1 - p0) * (f / length), radius, down)
+    return m3d.Manifold.batch_hull([boss(j, upper, n), stub])
+
+
+def link_part(i: int, bars: np.ndarray, radius: float, down: np.ndarray,
+              joints: tuple[Joint, ...], printer_c: float, extra: m3d.Manifold | None = None,
+              extra_capsules: list[tuple] = (), flat: bool = True,
+              segments: int = SEGMENTS) -> Part:
+    """Link ``i``: its ``bars`` ``(n, 2, 3)`` (mm, from ``S_i`` to ``E_i``; with an
+    end-effector ``S_3 L``, ``R E_3``) of hex corner ``radius`` with flat face ``down``, its
+    joints ``i - 1`` (upper side) and ``i`` (lower side), ``extra`` solids joined to it (P,
+    a carved body), clearance ``printer_c``; ``flat``: cut at the print flat (not with an
+    ``extra``); ``segments`` of round solids (fewer for trial parts). Raises
+    :class:`FabricationError` when the cuts leave it in pieces."""
+    lower, upper = joints[i], joints[(i - 1) % 6]
+    body = m3d.Manifold.batch_boolean([hex_bar(p0, p1, radius, down) for p0, p1 in bars],
+                                      m3d.OpType.Add)
+    caps = [(p0, p1, radius, -1) for p0, p1 in bars]
+    if extra is not None:
+        body = body + extra
+        caps += list(extra_capsules)
+    n = segments
+    webs = [fillet(upper, True, (bars[0][0], bars[0][1]), radius, down, n),
+            fillet(lower, False, (bars[-1][1], bars[-1][0]), radius, down, n)]
+    body = m3d.Manifold.batch_boolean([body, *webs], m3d.OpType.Add)
+    body = body - zone_cut(lower, False, printer_c, n) - zone_cut(upper, True, printer_c, n)
+    body = m3d.Manifold.batch_boolean([body, boss(lower, False, n), boss(upper, True, n)],
+                                      m3d.OpType.Add)
+    far = 3.0 * radius + 10.0
+    body = body - holes(lower, False, far, n) - holes(upper, True, far, n)
+    # the print flat: nothing past the bar's down face
+    face = np.asarray(down, float)
+    level = float(np.max(bars.reshape(-1, 3) @ face)) + radius * np.sqrt(3.0) / 2
+    if flat and extra is None:
+        body = body.trim_by_plane(tuple(-face), -level)
+    body = _one_piece(body, i)
+    for j, up in ((lower, False), (upper, True)):
+        s0, s1 = j.upper if up else j.lower
+        # the boss and its fillet: within max(B, f + R) of the pin's points it spans
+        reach = max(j.boss_radius, fillet_length(j, radius) + radius)
+        caps.append((j.at(min(s0, 0.0 if not up else j.length)),
+                     j.at(max(s1, 0.0 if not up else j.length)), reach, j.index))
+    return Part(f"link_{i}", i, body, np.array([[c[0], c[1]] for c in caps]),
+                np.array([c[2] for c in caps]), np.array([c[3] for c in caps]), face, "link")
+
+
+def _one_piece(body: m3d.Manifold, link: int) -> m3d.Manifold:
+    """``body`` as one solid: a carved island or a bar end cut off by a joint zone (a sliver
+    the cuts leave) is dropped when it is small; a link cut through raises."""
+    if body.status() != m3d.Error.NoError or body.is_empty():
+        raise FabricationError(f"link {link} is not a valid solid ({body.status()})",
+                               "not-watertight")
     pieces = body.decompose()
     if len(pieces) == 1:
         return body
-    keep = [p for p in pieces if any(not (p ^ h).is_empty() for h in hubs)]
-    if len(keep) != 1:
-        raise FabricationError(f"link {link} falls apart into {len(keep)} pieces between its "
-                               "joints (a bar leaning over its pin is notched through); use a "
-                               "larger size or a longer pin (realization offset d)",
+    vols = np.array([p.volume() for p in pieces])
+    keep = pieces[int(np.argmax(vols))]
+    if np.sort(vols)[-2] > 0.02 * vols.max():
+        raise FabricationError(f"link {link} falls apart into {len(pieces)} pieces between its "
+                               "joints (a bar leaning over its pin is cut through)",
                                "falls-apart")
-    return keep[0]
+    return keep
 
 
-def principal_capsules(body: m3d.Manifold, pieces: int = 16) -> list[tuple]:
-    """:func:`_body_capsules` along the extent of ``body``'s vertices on their principal axis."""
-    v = np.asarray(body.to_mesh().vert_properties[:, :3], float)
-    c = v.mean(0)
-    axis = np.linalg.svd(v - c, full_matrices=False)[2][0]
-    s = (v - c) @ axis
-    return _body_capsules(body, c + s.min() * axis, c + s.max() * axis, pieces)
+def piece_solid(j: Joint, p: profiles.Fastener | object) -> m3d.Manifold:
+    """A joint piece (:class:`joints.Piece`) as a solid: a cylinder, the nut a hexagon."""
+    return _axis(j, p.s0, p.s1, p.radius, p.sides or SEGMENTS)
 
 
-def _body_capsules(body: m3d.Manifold, p0: np.ndarray, p1: np.ndarray,
-                   pieces: int = 16) -> list[tuple]:
-    """Capsules about ``pieces`` consecutive pieces of the bar ``[p0, p1]`` containing
+def piece_parts(joints: tuple[Joint, ...]) -> list[Part]:
+    """The separately printed pieces (printed pins, pin caps, rod caps) as parts, each with
+    its joint's lower link (it turns about the joint's axis: the same to either link)."""
+    out = []
+    for j in joints:
+        for k, p in enumerate(q for q in j.pieces if q.printed):
+            solid = piece_solid(j, p)
+            if p.role in ("pin cap", "rod cap"):  # its hole: the pin's or rod's end
+                axle = next(q for q in j.pieces if q.role in ("pin", "rod"))
+                hole = j.axle_d / 2 - (profiles.PRINTED_CAP_PRESS_MM / 2
+                                       if p.role == "pin cap" else -0.05)
+                solid = solid - _axis(j, max(p.s0, axle.s0) - EPS_MM,
+                                      min(p.s1, axle.s1) + EPS_MM, hole)
+            name = f"{p.role.replace(' ', '_')}_{j.index}" + (f"_{k}" if k > 1 else "")
+            # a cap prints on its closed end, the hole up; a pin on its side (export)
+            beyond = p.s0 >= j.length / 2
+            down = np.asarray(j.w, float) * (1.0 if beyond else -1.0)
+            out.append(Part(name, j.index, solid, np.array([[j.at(p.s0), j.at(p.s1)]]),
+                            np.array([p.radius]), np.array([j.index]), down,
+                            p.role.split()[-1]))
+    return out
+
+
+def pinched(man: m3d.Manifold) -> bool:
+    """Two vertices at one float32 position (a boolean can pinch a solid so): valid for
+    manifold3d, but a slicer that merges vertices by position reads an open mesh there."""
+    v = np.asarray(man.to_mesh().vert_properties[:, :3], np.float32)
+    return len(np.unique(v, axis=0)) < len(v)
+
+
+def check_solid(man: m3d.Manifold, name: str) -> None:
+    if man.status() != m3d.Error.NoError or man.is_empty():
+        raise FabricationError(f"{name} is not a valid manifold solid ({man.status()})",
+                               "not-watertight")
+
+
+def body_capsules(body: m3d.Manifold, p0: np.ndarray, p1: np.ndarray,
+                  pieces: int = 16) -> list[tuple]:
+    """Capsules about ``pieces`` consecutive pieces of the segment ``[p0, p1]`` containing
     ``body``: each triangle goes to the piece of its centroid's projection and the radius
     covers its vertices (a triangle lies in the convex hull of its vertices, a capsule is
-    convex). A surface inside such a chain of capsules encloses nothing outside it (moving
-    away from the bar's line leaves every capsule), so the solid is covered too."""
+    convex). A surface inside such a chain of capsules encloses nothing outside it."""
     mesh = body.to_mesh()
     tri = np.asarray(mesh.vert_properties[:, :3], float)[np.asarray(mesh.tri_verts)]
     d = p1 - p0
@@ -374,51 +278,18 @@ def _body_capsules(body: m3d.Manifold, p0: np.ndarray, p1: np.ndarray,
     return out
 
 
-def _mesh_manifold(vertices: np.ndarray, faces: np.ndarray) -> m3d.Manifold:
-    """A carved body's mesh as a manifold; empty where manifold3d refuses it or nothing is
-    left (a space carved thinner than float32 resolves): the link is then its bar alone."""
+def principal_capsules(body: m3d.Manifold, pieces: int = 16) -> list[tuple]:
+    """:func:`body_capsules` along the extent of ``body``'s vertices on their principal axis."""
+    v = np.asarray(body.to_mesh().vert_properties[:, :3], float)
+    c = v.mean(0)
+    axis = np.linalg.svd(v - c, full_matrices=False)[2][0]
+    s = (v - c) @ axis
+    return body_capsules(body, c + s.min() * axis, c + s.max() * axis, pieces)
+
+
+def mesh_manifold(vertices: np.ndarray, faces: np.ndarray) -> m3d.Manifold:
+    """A mesh as a manifold; empty where manifold3d refuses it."""
     mesh = m3d.Mesh(np.ascontiguousarray(vertices, np.float32),
                     np.ascontiguousarray(faces, np.uint32))
     man = m3d.Manifold(mesh)
     return man if man.status() == m3d.Error.NoError else m3d.Manifold()
-
-
-def _check_manifold(man: m3d.Manifold, name: str) -> None:
-    if man.status() != m3d.Error.NoError or man.is_empty():
-        raise FabricationError(f"{name} is not a valid manifold solid ({man.status()})",
-                               "not-watertight")
-
-
-def zone_cut(z: Zone, upper: bool, segments: int) -> m3d.Manifold:
-    """What a body loses at a joint: radius ``R - eps`` along its own boss (the boss, radius
-    R, overlaps the rest: no coincident faces, no slits) and ``R + c + eps`` towards the
-    neighbour, on to ``c + eps`` past the zone's far end: what is left there (a bar that leans
-    over the joint) keeps the clearance c from the neighbour's boss and its end face."""
-    e, r, mid, c = z.eps, z.radius, z.split, z.gap
-    end = z.length - z.s0  # far end of the upper boss
-    if upper:
-        cuts = [(z.s0 - c - e, mid + c / 2 + e, r + c + e)]
-        cuts += [(mid + c / 2 + e, end - e, r - e), (end - e, z.s1 + c + e, r + c + e)] \
-            if z.s1 > end else [(mid + c / 2 + e, end - e, r - e)]
-    else:
-        cuts = [(z.s0 + e, mid - c / 2 - e, r - e), (mid - c / 2 - e, z.s1 + c + e, r + c + e)]
-    return m3d.Manifold.batch_boolean([cylinder(z.at(a), z.at(b), rad, segments)
-                                       for a, b, rad in cuts], m3d.OpType.Add)
-
-
-def zone_solid(z: Zone, segments: int) -> m3d.Manifold:
-    """Verification zone ``W`` (radius ``R + eps/2``) holding all hardware of the joint."""
-    e = z.eps / 2
-    return cylinder(z.at(z.s0 - e), z.at(z.s1 + e), z.radius + e, segments)
-
-
-def zone_hulls(z: Zone, spec: PartSpec) -> tuple[m3d.Manifold, m3d.Manifold]:
-    """Solids of revolution (up to the polygon error) containing each side's part inside
-    :func:`zone_solid`: the lower side's boss region plus its pin (and head), and the upper
-    side's boss region (its material left inside ``W``)."""
-    e, n, mid = z.eps / 2, spec.segments, z.split
-    lower = cylinder(z.at(z.s0 - e), z.at(mid - z.gap / 2), z.radius + e, n)
-    for p0, p1, r, _ in _hardware(z, spec, False)[1:]:
-        lower = lower + cylinder(p0, p1, r, n)
-    end = z.length - z.s0 if spec.print_in_place else z.s1 + e
-    return lower, cylinder(z.at(mid + z.gap / 2), z.at(end), z.radius + e, n)

@@ -1,154 +1,343 @@
-"""Printer profiles and the automatic size: the thickest parts the certificate allows.
+"""Size and thickness of the parts: the strongest links the certificate allows.
 
-The realization proves, over the whole cycle, a lower bound ``L_ef`` (design units) of the
-distance between each pair of its 12 centre segments that must stay apart
-(``Realization.pair_lower``: bars ``S_iE_i`` and pins ``E_iS_{i+1}`` of different links) and of
-each pair of consecutive bars (``joint_lower``). A part lies within a capsule about its
-segments: radius ``R_bar`` about its bar, ``R_boss`` (the joint hardware) about its pins. So at
-``k`` mm per unit the parts keep ``c`` mm apart if
+The realization proves, over the whole cycle, a lower bound ``L`` (design units) of the
+distance between the centre lines of every pair of segments of different links that must stay
+apart (``Realization.pair_lower``: bars ``S_iE_i`` and pins ``E_iS_{i+1}``) and of each pair of
+consecutive bars (``joint_lower``); two consecutive pins are fixed in the link between them, so
+their distance is the one at home. A link lies in a capsule of radius ``R_i`` (its hexagonal
+bar's corner radius) about its bar, and a joint's bosses and hardware in a capsule of radius
+``max(B_j, h_j)`` (boss ``B_j``, hardware ``h_j``) about its pin extended by ``x_j`` past the pin's
+ends (a point within ``x`` of a segment's end is within ``x`` of the segment). So at ``k`` mm per
+unit the parts keep the gap ``g`` if ``r_a + r_b + g <= k L - x_a - x_b`` for every row: one small
+linear programme in the twelve radii (:func:`radii`) gives the largest thinnest bar, then the
+largest sum, every bar at least :data:`WIDTH_MM` wide and at most :data:`LW_MAX` times as
+long, bosses :data:`BOSS_PER_BAR` times the bar they hold and wide enough for their axle
+(any joint may become the grounded joint on the rod). The gaps are
+:func:`stiffness.required_gaps` of the predicted deflections, so the LP is repeated until the
+radii, the joint layouts (``x_j``) and the deflections agree.
 
-* ``2 R_bar + c <= k L`` for bar-bar pairs (consecutive bars included),
-* ``R_bar + R_boss + c <= k L`` for bar-pin pairs, ``2 R_boss + c <= k L`` for pin-pin pairs,
-and a printer needs ``R_bar >= wall / 2`` (the bar is one wall thick),
-``R_boss >= pin + c + wall`` (a pin of the profile's radius in a bore with a wall around it)
-and ``k P >= 2 wall + c`` for the shortest pin ``P`` (the two bosses on a pin, each a wall
-thick, with the clearance between them).
-Each constraint is linear in ``k``: the smallest size follows in closed form, and at any larger
-size the radii grow to the certified limits, bosses first (the pin in its bore is the weak
-spot; at most :data:`BOSS_CAP` of the size), then bars up to :data:`BAR_TO_BOSS` of the
-boss (and :data:`BAR_CAP` of the size). The export's own interference check then
-re-verifies the built parts over the cycle.
+:func:`plan` picks the size: the largest at which the predicted parts fit the printer's bed
+(or the caller's size) and the programme is feasible; the built parts are measured again
+(:mod:`printable`).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Any
+import itertools
+from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.optimize import linprog
 
 from paraloop_core.errors import FabricationError
+from paraloop_core.fabrication import joints, stiffness
+from paraloop_core.fabrication.profiles import Material, Printer, Rod
+from paraloop_core.linkage import drive, loops
 
-#: Preferred longest side of the linkage (mm) when the profile allows it.
-PREFERRED_SIZE_MM = 150.0
-#: Largest bar radius as a fraction of the boss radius.
-BAR_TO_BOSS = 0.75
-#: Largest boss radius as a fraction of the size (beyond the profile's minimum): thicker is
-#: not stronger where it only adds mass, and hubs wider than the pins are long crowd the joint.
-BOSS_CAP = 0.012
-#: Largest bar radius as a fraction of the size (beyond the profile's minimum).
-BAR_CAP = 0.004
-
-
-@dataclass(frozen=True)
-class Printer:
-    """A printer profile: ``bed_mm`` (x, y, z build volume), thinnest ``wall_mm``, smallest
-    ``pin_radius_mm`` and the joint ``clearance_mm`` (radial pin/bore and axial gaps)."""
-
-    name: str
-    bed_mm: tuple[float, float, float]
-    wall_mm: float = 2.0
-    pin_radius_mm: float = 1.0
-    clearance_mm: float = 0.3
-
-    def __post_init__(self) -> None:
-        vals = (*self.bed_mm, self.wall_mm, self.pin_radius_mm)
-        if len(self.bed_mm) != 3 or not all(np.isfinite(v) and v > 0 for v in vals) \
-                or not (np.isfinite(self.clearance_mm) and self.clearance_mm >= 0):
-            raise FabricationError(f"printer {self.name!r}: bed, wall and pin must be > 0 mm and "
-                                   f"the clearance >= 0 mm, got {self}", "bad-parameters")
-
-
-#: Common desktop printers (build volumes from the makers' data sheets, mm).
-PRINTERS = {p.name: p for p in (
-    Printer("generic", (250.0, 210.0, 210.0)),
-    Printer("prusa-mk4", (250.0, 210.0, 220.0)),
-    Printer("prusa-mini", (180.0, 180.0, 180.0)),
-    Printer("bambu-x1", (256.0, 256.0, 256.0)),
-    Printer("bambu-a1-mini", (180.0, 180.0, 180.0)),
-    Printer("ender-3", (220.0, 220.0, 250.0)),
-)}
+#: Bars at least this wide across flats (mm): the floor, and the width aimed for.
+WIDTH_MM, WIDTH_AIM_MM = 6.0, 7.0
+#: Bar length per width across flats: the ceiling, and the ratio aimed for.
+LW_MAX, LW_AIM = 30.0, 25.0
+#: Boss radius per bar corner radius: room for a fillet of a quarter of the bar.
+BOSS_PER_BAR = 1.25
+#: Thickest bar (corner radius, mm) as a fraction of the size, within [lo, hi] mm: thicker
+#: only adds mass (and motor torque) to a desk model.
+BAR_CAP = (0.028, 4.5, 8.0)
+#: Gaps the programme keeps, per required gap, when it can (the verification then proves the
+#: required gap with room to spare, not at its limit).
+GAP_MARGIN = 1.25
+#: Sizes (mm) tried below the bed's limit, as factors, when the programme is infeasible there.
+SHRINK = 0.9
+#: Hex bars per corner radius: across flats (width) and the flat's distance from the axis.
+FLATS = np.sqrt(3.0)
+APOTHEM = np.sqrt(3.0) / 2.0
 
 
 @dataclass(frozen=True)
-class Limits:
-    """Certified distance bounds (design units) by pair type and the polyline's extent."""
+class Bounds:
+    """A realization's certified bounds (design units): ``points`` ``(12, 3)``, ``rows``
+    ``(N, 4)`` (edge, edge, link, link) with ``lower`` ``(N,)``, consecutive bars
+    ``joint_lower`` ``(6,)``, consecutive pins at home ``pin_pin`` ``(6,)`` (joint j with j+1),
+    ``extent`` (longest side of the polyline's box), the joint ``axes`` ``(6, 6)``."""
 
-    bar_bar: float
-    bar_pin: float
-    pin_pin: float
+    points: np.ndarray
+    rows: np.ndarray
+    lower: np.ndarray
+    joint_lower: np.ndarray
+    pin_pin: np.ndarray
     extent: float
-    #: shortest pin ``E_i S_{i+1}``
-    pin_length: float
+    axes: np.ndarray
+
+    @property
+    def bar_lengths(self) -> np.ndarray:
+        return np.linalg.norm(self.points[1::2] - self.points[0::2], axis=-1)
+
+
+def bounds_of(real) -> Bounds:
+    """:class:`Bounds` of a ``certified.Realization``."""
+    from paraloop_core.realization.clearance import segment_distance
+
+    pts = np.asarray(real.points, float)
+    low = np.asarray(real.pair_lower, float)
+    # consecutive bars i, i+1 (inf where a bar is not there: link 3 with an end-effector)
+    jl = np.full(6, np.inf)
+    jl[np.asarray(real.joint_pairs)[:, 2]] = np.asarray(real.joint_lower, float)
+    if not (np.all(np.isfinite(low)) and not np.any(np.isnan(jl))):
+        raise FabricationError("the realization has no proven pair bounds", "bad-parameters")
+    e, s = pts[1::2], np.roll(pts[0::2], -1, axis=0)  # pin j: E_j -> S_{j+1}
+    pp = segment_distance(e, s, np.roll(e, -1, axis=0), np.roll(s, -1, axis=0))
+    return Bounds(pts, np.asarray(real.pairs), low, jl, np.asarray(pp, float),
+                  float(np.max(np.ptp(pts, axis=0))), loops.factor_axes(real.joint_factors))
 
 
 @dataclass(frozen=True)
-class Sizing:
-    """The chosen size (mm, longest side of the polyline), ``scale`` (mm per unit), the part
-    radii (mm), the smallest size meeting the profile and the constraint that sets it."""
+class Plan:
+    """The sizing: ``size_mm`` (longest side of the polyline), ``scale`` (mm per unit), bar
+    corner ``radii`` ``(6,)`` and ``boss`` radii ``(6,)`` (mm), the joint ``layouts``, the
+    ``deflection`` estimate, the required ``gaps`` ``(6, 6)`` (the programme kept
+    :data:`GAP_MARGIN` more when ``aims_met``), the motor ``torque_nm`` bound used,
+    ``aims_met`` (width, length/width and gap aims, not only the floors) and ``notes``."""
 
     size_mm: float
     scale: float
-    bar_radius_mm: float
-    boss_radius_mm: float
-    pin_radius_mm: float
-    min_size_mm: float
-    binding: str
+    radii: np.ndarray
+    boss: np.ndarray
+    layouts: tuple[joints.Joint, ...]
+    deflection: stiffness.Deflection
+    gaps: np.ndarray
+    torque_nm: float
+    aims_met: bool
+    notes: tuple[str, ...] = field(default=())
 
 
-def limits(points: np.ndarray, pairs: np.ndarray, pair_lower: np.ndarray,
-           joint_lower: np.ndarray) -> Limits:
-    """:class:`Limits` of a realization: ``points`` ``(12, 3)``, ``pairs`` ``(N, 4)`` (edge,
-    edge, link, link; even edges are bars) with proven ``pair_lower`` ``(N,)`` and the proven
-    ``joint_lower`` ``(6,)`` of the consecutive bars."""
-    pts = np.asarray(points, float)
-    e = np.asarray(pairs)[:, :2] % 2 == 0
-    low = np.asarray(pair_lower, float)
-    if not (np.all(np.isfinite(low)) and np.all(np.isfinite(joint_lower))):
-        raise FabricationError("the realization has no proven pair bounds", "bad-parameters")
-    bb = min(low[e[:, 0] & e[:, 1]].min(initial=np.inf), float(np.min(joint_lower)))
-    pins = np.linalg.norm(pts[1::2] - np.roll(pts[0::2], -1, axis=0), axis=-1)
-    return Limits(bb, low[e[:, 0] != e[:, 1]].min(initial=np.inf),
-                  low[~e[:, 0] & ~e[:, 1]].min(initial=np.inf),
-                  float(np.max(np.ptp(pts, axis=0))), float(pins.min()))
+def bar_cap(size_mm: float) -> float:
+    """Thickest bar corner radius (mm) at ``size_mm`` (:data:`BAR_CAP`)."""
+    f, lo, hi = BAR_CAP
+    return float(np.clip(f * size_mm, lo, hi))
 
 
-def realization_limits(real: Any) -> Limits:
-    """:func:`limits` of a ``certified.Realization`` (its points, pairs and proven bounds)."""
-    return limits(real.points, real.pairs, real.pair_lower, real.joint_lower)
+def min_radii(b: Bounds, k: float, printer: Printer, kind: str, aim: bool) -> np.ndarray:
+    """Thinnest bar corner radius ``(6,)`` (mm) at ``k`` mm per unit: the width, the length per
+    width (aims or floors) and a wall between the bore and the bar's flat underside (the part
+    is printed on that flat: its bosses are cut to it)."""
+    width, lw = (WIDTH_AIM_MM, LW_AIM) if aim else (WIDTH_MM, LW_MAX)
+    flat = (joints.bore_radius(kind, printer) + printer.wall_mm) / APOTHEM
+    return np.maximum.reduce([np.full(6, width / FLATS), b.bar_lengths * k / (lw * FLATS),
+                              np.full(6, flat)])
 
 
-def choose_size(lim: Limits, printer: Printer, size_mm: float | None = None) -> Sizing:
-    """Size and radii (module docstring): ``size_mm`` if given (refused when below the
-    profile's minimum), else :data:`PREFERRED_SIZE_MM` raised to the minimum if needed."""
-    c, wall = printer.clearance_mm, printer.wall_mm
-    bar_min, boss_min = wall / 2.0, printer.pin_radius_mm + c + wall
-    need = {  # smallest k (mm per unit) of each constraint
-        "bar-bar clearance": (2 * bar_min + c) / lim.bar_bar,
-        "bar-boss clearance": (bar_min + boss_min + c) / lim.bar_pin,
-        "boss-boss clearance": (2 * boss_min + c) / lim.pin_pin,
-        "boss thickness on the shortest pin": (2 * wall + c) / max(lim.pin_length, 1e-300),
-    }
-    binding = max(need, key=need.get)
-    min_size = need[binding] * lim.extent
-    if size_mm is None:
-        size_mm = max(PREFERRED_SIZE_MM, min_size)
-    elif size_mm < min_size * (1 - 1e-12):
-        raise FabricationError(
-            f"at {size_mm:.4g} mm the parts cannot meet the printer profile {printer.name!r} "
-            f"(walls {wall} mm, pin radius {printer.pin_radius_mm} mm, clearance {c} mm): the "
-            f"{binding} needs at least {np.ceil(min_size):.0f} mm", "bad-parameters")
-    k = size_mm / lim.extent
-    shared = k * lim.bar_pin - c  # budget of R_bar + R_boss
-    # split it as BAR_TO_BOSS (a bar stays thinner than its hubs: the joint zones must
-    # contain its section), keeping each above its minimum
-    bar = min((k * lim.bar_bar - c) / 2.0, shared - boss_min,
-              max(bar_min, shared * BAR_TO_BOSS / (1.0 + BAR_TO_BOSS)))
-    boss = min((k * lim.pin_pin - c) / 2.0, shared - bar, max(boss_min, BOSS_CAP * size_mm))
-    bar = min(bar, max(bar_min, min(BAR_TO_BOSS * boss, BAR_CAP * size_mm)))
-    pin = max(printer.pin_radius_mm, min(0.5 * boss, boss - c - wall))
-    return Sizing(float(size_mm), float(k), float(bar), float(boss), float(pin), float(min_size),
-                  binding)
+def min_boss(printer: Printer, kind: str, rod: Rod) -> float:
+    """Smallest boss radius (mm) of every joint: its own axle, or the rod if it becomes the
+    grounded joint."""
+    return max(joints.min_boss_radius(kind, printer), joints.min_boss_radius("rod", printer, rod))
+
+
+def radii(b: Bounds, k: float, rmin: np.ndarray, rcap: float, bmin: float,
+          env: np.ndarray, gaps: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """Bar corner radii and boss radii ``(6,), (6,)`` (mm) at ``k`` mm per unit (module
+    docstring), or None when no radii meet every row; ``rmin`` ``(6,)``, ``rcap``, ``bmin``
+    the bounds, ``env`` ``(6, 2)`` each joint's :func:`joints.envelope` (how far its bosses
+    reach past the pin's ends; the largest radius plus reach of its metal pieces), ``gaps``
+    ``(6, 6)`` the gap each pair of links keeps (mm)."""
+    rows_a, rows_b = [], []
+
+    def shapes(e: int) -> list[tuple[int | None, float]]:
+        """Capsules of edge e as (radius variable or None, reach subtracted from the bound):
+        a bar's R; a pin's bosses (B, reach) and its metal pieces (constant, nothing)."""
+        if e % 2 == 0:
+            return [(e // 2, 0.0)]
+        j = e // 2
+        return [(6 + j, float(env[j, 0]))] + ([(None, float(env[j, 1]))] if env[j, 1] > 0
+                                              else [])
+
+    def add(e1: list, e2: list, budget: float) -> None:
+        for (v1, x1), (v2, x2) in itertools.product(e1, e2):
+            a = np.zeros(12)
+            for v in (v1, v2):
+                if v is not None:
+                    a[v] += 1.0
+            rows_a.append(a)
+            rows_b.append(budget - x1 - x2)
+
+    for (e1, e2, la, lb), low in zip(b.rows, b.lower, strict=True):
+        add(shapes(int(e1)), shapes(int(e2)), k * low - gaps[la, lb])
+    for i in range(6):  # consecutive bars i, i+1 and consecutive pins i, i+1
+        j = (i + 1) % 6
+        if np.isfinite(b.joint_lower[i]):
+            add(shapes(2 * i), shapes(2 * j), k * b.joint_lower[i] - gaps[i, j])
+        add(shapes(2 * i + 1), shapes(2 * j + 1), k * b.pin_pin[i] - gaps[i, (i + 2) % 6])
+    for j in range(6):  # bosses hold a fillet around both bars they join
+        for link in (j, (j + 1) % 6):
+            a = np.zeros(12)
+            a[link], a[6 + j] = BOSS_PER_BAR, -1.0
+            rows_a.append(a)
+            rows_b.append(0.0)
+    a_ub, b_ub = np.array(rows_a), np.array(rows_b)
+    if np.any((np.abs(a_ub).sum(axis=1) == 0) & (b_ub < 0)):
+        return None  # metal pieces alone are too close for a row
+    bounds = [(float(rmin[i]), rcap) for i in range(6)] + [(bmin, None)] * 6
+    # 1) the largest thinnest bar t (variable 12): t - R_i <= 0
+    a1 = np.hstack([a_ub, np.zeros((len(a_ub), 1))])
+    floor = np.zeros((6, 13))
+    floor[np.arange(6), np.arange(6)], floor[:, 12] = -1.0, 1.0
+    res = linprog(np.r_[np.zeros(12), -1.0], A_ub=np.vstack([a1, floor]),
+                  b_ub=np.r_[b_ub, np.zeros(6)], bounds=[*bounds, (None, None)],
+                  method="highs")
+    if not res.success:
+        return None
+    t = res.x[12]
+    # 2) the largest bars with every bar >= t, then the smallest bosses that hold them
+    bounds2 = [(max(lo, t * (1 - 1e-6)), hi) for lo, hi in bounds[:6]] + bounds[6:]
+    res = linprog(np.r_[-np.ones(6), 0.05 * np.ones(6)], A_ub=a_ub, b_ub=b_ub, bounds=bounds2,
+                  method="highs")
+    x = res.x if res.success else np.r_[np.full(6, t), res.x[6:] if res.x is not None else
+                                        np.full(6, bmin)]
+    # the solver's round-off must not overstep a row: shrink towards the floors
+    over = a_ub @ x - b_ub
+    if np.any(over > 1e-9):
+        return None if np.any(over > 1e-6) else (x[:6] * (1 - 1e-7), x[6:] * (1 - 1e-7))
+    return x[:6], x[6:]
+
+
+def _layouts(b: Bounds, k: float, r: np.ndarray, boss: np.ndarray, kind: str,
+             printer: Printer, eps: float) -> tuple[joints.Joint, ...]:
+    pts = b.points * k
+    out = []
+    for j in range(6):
+        e, s = pts[2 * j + 1], pts[(2 * j + 2) % 12]
+        bars = (pts[2 * j] - e, pts[(2 * j + 3) % 12] - s)
+        out.append(joints.layout(j, e, s, b.axes[j, :3], bars, (r[j], r[(j + 1) % 6]),
+                                 boss[j], kind, printer, eps=eps))
+    return tuple(out)
+
+
+def envelopes(layouts: tuple[joints.Joint, ...]) -> np.ndarray:
+    """:func:`joints.envelope` of each joint ``(6, 2)`` (mm)."""
+    return np.array([joints.envelope(j) for j in layouts])
+
+
+def torque_matrix(real) -> np.ndarray:
+    """``(6, T, 6)``: for each resting link, the quasi-static motor torque (N m) of its
+    recommended motor at ``T`` motor angles per kilogram at each link's bar middle, the loop
+    at 1 mm per design unit. The torque is linear in the masses and in the scale, so
+    :func:`torque_bound` is a product."""
+    pts = np.asarray(real.points, float)
+    centers = (pts[0::2] + pts[1::2]) / 2 * 1e-3  # m at 1 mm per unit
+    theta = np.linspace(0.0, 2 * np.pi, 64, endpoint=False)
+    out = np.zeros((6, len(theta), 6))
+    for rest in range(6):
+        motor = drive.recommend_motor(real.joint_factors, rest).motor
+        for link in range(6):
+            if link == rest:
+                continue
+            unit = np.zeros(6)
+            unit[link] = 1.0
+            out[rest, :, link] = drive.motor_torque(real.joint_factors, motor, unit, centers,
+                                                    length_unit_m=1e-3, resting_link=rest,
+                                                    theta=theta).torque
+    return out
+
+
+def torque_bound(real, k: float, radius: np.ndarray, boss: np.ndarray, density: float,
+                 matrix: np.ndarray) -> float:
+    """An estimate (N m) of the motor's peak torque against gravity of parts with bar corner
+    radii ``radius`` ``(6,)`` and bosses ``boss`` ``(6,)`` (mm) at ``k`` mm per unit: each
+    link's mass (bar and half of both its joints) at its bar's middle, the worst over every
+    link resting (the grounding is chosen later) and its recommended motor
+    (:func:`torque_matrix`)."""
+    pts = np.asarray(real.points, float)
+    length = np.linalg.norm(pts[1::2] - pts[0::2], axis=-1) * k
+    pin = np.linalg.norm(pts[1::2] - np.roll(pts[0::2], -1, axis=0), axis=-1) * k
+    hub = np.pi * np.square(boss) * (pin + 4 * boss) / 2  # half of each of its two joints
+    vol = stiffness.hex_area(radius) * length + hub + np.roll(hub, 1)
+    mass = vol * density * 1e-6  # kg: mm^3 x g/cm^3
+    return float(np.max(np.abs(matrix @ mass)) * k)
+
+
+def at_scale(real, b: Bounds, k: float, printer: Printer, material: Material, kind: str,
+             rod: Rod, eps: float, matrix: np.ndarray) -> Plan | None:
+    """The :class:`Plan` at ``k`` mm per unit, or None when no radii meet the rows there:
+    first with the width and length/width aims and gaps :data:`GAP_MARGIN` over the required
+    ones, then with the floors and the required gaps."""
+    size = k * b.extent
+    rcap, bmin = bar_cap(size), min_boss(printer, kind, rod)
+    lengths = b.bar_lengths * k
+    for aim in (True, False):
+        margin = GAP_MARGIN if aim else 1.0
+        rmin = min_radii(b, k, printer, kind, aim)
+        if np.any(rmin > rcap) and not aim:
+            return None
+        rmin = np.minimum(rmin, rcap)
+        r = rmin
+        boss = np.maximum(bmin, BOSS_PER_BAR * np.maximum(r, np.roll(r, -1)))
+        env, gaps = np.zeros((6, 2)), np.full((6, 6), stiffness.MIN_GAP_MM * margin)
+        for _ in range(6):  # radii, joint layouts and deflections until they agree
+            try:
+                env = np.maximum(env, envelopes(_layouts(b, k, r, boss, kind, printer, eps)))
+            except FabricationError:
+                break
+            sol = radii(b, k, rmin, rcap, bmin, env, gaps)
+            if sol is None:
+                break
+            r, boss = sol
+            tq = torque_bound(real, k, r, boss, material.density_g_cm3, matrix)
+            d = stiffness.deflections(lengths, r, np.ones(6), material.modulus_gpa,
+                                      material.density_g_cm3, tq)
+            need = stiffness.required_gaps(d.total)
+            try:
+                lay = _layouts(b, k, r, boss, kind, printer, eps)
+            except FabricationError:
+                break
+            if np.all(envelopes(lay) <= env + 1e-9) and np.all(need * margin <= gaps + 1e-9):
+                return Plan(size, k, r, boss, lay, d, need, tq, aim)
+            gaps = np.maximum(gaps, need * margin)
+    return None
+
+
+def plan(real, printer: Printer, material: Material, kind: str, rod: Rod, *,
+         size_mm: float | None = None, eps: float = 0.05, fit=None) -> Plan:
+    """The :class:`Plan` (module docstring) of a realization: at ``size_mm`` if given (refused
+    when infeasible there), else the largest size whose predicted parts fit the bed
+    (``fit(plan) -> factor``: by how much the parts may still grow, <= 1 when they do not
+    fit) and meet the programme, shrinking by :data:`SHRINK` until they do."""
+    b = bounds_of(real)
+    matrix = torque_matrix(real)
+    if size_mm is not None:
+        p = at_scale(real, b, size_mm / b.extent, printer, material, kind, rod, eps, matrix)
+        if p is None:
+            raise FabricationError(
+                f"at {size_mm:.0f} mm no bars at least {WIDTH_MM:g} mm wide and at most "
+                f"{LW_MAX:g} times as long keep the links apart over the cycle with this "
+                "realization; try a larger size or let the program choose", "bad-parameters")
+        return p
+    k = _bed_scale(b, printer)
+    tried = []
+    for _ in range(24):
+        p = at_scale(real, b, k, printer, material, kind, rod, eps, matrix)
+        if p is not None:
+            grow = fit(p) if fit is not None else 1.0
+            if grow >= 1.0:
+                return p
+            k *= max(min(grow, 0.99), 0.5)
+            continue
+        tried.append(k * b.extent)
+        k *= SHRINK
+    raise FabricationError(
+        f"no size from {tried[0]:.0f} mm down to {tried[-1]:.0f} mm gives bars at least "
+        f"{WIDTH_MM:g} mm wide, at most {LW_MAX:g} times as long, that keep the links apart "
+        "over the cycle", "bad-parameters")
+
+
+def _bed_scale(b: Bounds, printer: Printer) -> float:
+    """mm per unit at which every link's skeleton (its bar and half of each pin) would just
+    fit the bed, flat: a first guess refined by the caller's ``fit``."""
+    pts = b.points
+    s, e = pts[0::2], pts[1::2]
+    link = np.stack([(np.roll(e, 1, axis=0) + s) / 2, s, e, (e + np.roll(s, -1, axis=0)) / 2], 1)
+    centred = link - link.mean(axis=1, keepdims=True)
+    _, _, vt = np.linalg.svd(centred)
+    ext = np.ptp(np.einsum("pnk,pjk->pnj", centred, vt), axis=1)
+    return float(fit_factor(ext, printer).min())
 
 
 #: Turns about the vertical (radians, 0.5 degree steps) tried for a footprint: a long thin
@@ -187,3 +376,19 @@ def fits_bed(extents_mm: np.ndarray, printer: Printer) -> np.ndarray:
     """Mask ``(P,)``: parts with box extents ``(P, 3)`` fit the bed in some orientation
     (:func:`fit_factor`)."""
     return fit_factor(extents_mm, printer) >= 1.0 - 1e-9
+
+
+def to_dict(plan: Plan, printer: Printer) -> dict:
+    """The report's ``sizing`` entry."""
+    return {"size_mm": plan.size_mm, "scale_mm_per_unit": plan.scale,
+            "bar_radius_mm": plan.radii.tolist(),
+            "bar_width_mm": (plan.radii * FLATS).tolist(), "boss_radius_mm": plan.boss.tolist(),
+            "aims_met": plan.aims_met, "motor_torque_bound_nm": plan.torque_nm,
+            "required_gap_mm": plan.gaps.tolist(), "printer": printer.name,
+            "bed_mm": list(printer.bed_mm), "wall_mm": printer.wall_mm,
+            "clearance_mm": printer.clearance_mm,
+            "method": "largest size whose parts fit the bed; bar (hexagon corner) and boss radii "
+                      "from one linear programme over the certified pair bounds (largest "
+                      "thinnest bar, then largest bars), every gap between links without a "
+                      f"common joint at least max({stiffness.MIN_GAP_MM:g} mm, "
+                      f"{stiffness.GAP_PER_DEFLECTION:g} x their predicted deflections)"}

@@ -1,0 +1,172 @@
+"""The printed loop put together: the six links, the joints' pieces, the hardware.
+
+:func:`build_links` makes each link of a sizing :class:`sizing.Plan` (:mod:`parts`), lying on
+the print flat :func:`layout.choose_down` picks; :class:`Assembly` holds them with the joints,
+the separately printed pieces (pins, caps), the metal hardware as solids (for the
+verification and the pictures; not printed) and, once grounded, the base (:mod:`base`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import manifold3d as m3d
+import numpy as np
+
+from paraloop_core.fabrication import layout, parts, sizing
+from paraloop_core.fabrication.joints import Joint
+from paraloop_core.fabrication.parts import Part
+from paraloop_core.fabrication.profiles import Printer
+
+#: Polygon segments of the coarse trial parts that measure a print flat's support.
+TRIAL_SEGMENTS = 12
+#: Extra polygon segments tried when a boolean pinches two vertices onto one position.
+RETESSELLATE = (0, 2, 6)
+
+
+@dataclass(frozen=True)
+class Hardware:
+    """A metal piece (not printed): ``role`` (screw, lock nut, thrust washer, rod), the
+    ``joint`` whose axis it lies on (-1: the base), ``link`` it moves with for the
+    verification (a piece about a joint axis turns with either link: the lower one), its
+    ``solid`` (mm, home) and bounding capsule ``capsule`` ``(2, 3)`` with ``radius``."""
+
+    role: str
+    joint: int
+    link: int
+    solid: m3d.Manifold
+    capsule: np.ndarray
+    radius: float
+
+
+@dataclass(frozen=True)
+class Assembly:
+    """``parts`` (links 0..5 first, then the printed pieces and the base), ``scale`` (mm per
+    design unit), ``joints``, the loop's ``joint_factors`` (design units), the sizing
+    ``plan``, the ``printer`` and joint ``kind``, the metal ``hardware``, and the ``slack``
+    (mm) of each link's print flat (< 0: not cut flat, walls would break)."""
+
+    parts: tuple[Part, ...]
+    scale: float
+    joints: tuple[Joint, ...]
+    joint_factors: np.ndarray
+    plan: sizing.Plan
+    printer: Printer
+    kind: str
+    hardware: tuple[Hardware, ...] = ()
+    slack: np.ndarray = field(default_factory=lambda: np.zeros(6))
+    base: object | None = None
+    #: each link's bars ``(n, 2, 3)`` (mm) and the solids joined to it (to rebuild a link)
+    bars: tuple[np.ndarray, ...] = ()
+    extras: dict = field(default_factory=dict)
+
+    @property
+    def links(self) -> tuple[Part, ...]:
+        return self.parts[:6]
+
+
+def hardware_of(joints: tuple[Joint, ...]) -> tuple[Hardware, ...]:
+    """The metal pieces of every joint as :class:`Hardware` (the rod only within its joint:
+    the base adds the column)."""
+    out = []
+    for j in joints:
+        for p in j.pieces:
+            if p.printed:
+                continue
+            out.append(Hardware(p.role, j.index, j.index, parts.piece_solid(j, p),
+                                np.stack([j.at(p.s0), j.at(p.s1)]), p.radius))
+    return tuple(out)
+
+
+def link_bars(points_mm: np.ndarray, end_bars_mm: np.ndarray | None = None) -> list[np.ndarray]:
+    """Each link's bars ``(n, 2, 3)`` (mm): ``S_i E_i``; link 3's ``S_3 L``, ``R E_3`` with an
+    end-effector."""
+    bars = [points_mm[[2 * i, 2 * i + 1]][None] for i in range(6)]
+    if end_bars_mm is not None:
+        bars[3] = np.asarray(end_bars_mm, float)
+    return bars
+
+
+def _link(plan: sizing.Plan, i: int, bars: np.ndarray, layouts: tuple[Joint, ...],
+          printer: Printer, extras: dict, down: np.ndarray | None = None
+          ) -> tuple[Part, float]:
+    """Link ``i`` and its print-flat slack: on ``down`` if given, else the flat
+    :func:`layout.choose_down` picks."""
+    r = float(plan.radii[i])
+    extra, caps = extras.get(i, (None, []))
+    c = printer.clearance_mm
+
+    def make(d: np.ndarray, cut: bool = True, n: int = parts.SEGMENTS) -> Part:
+        return parts.link_part(i, bars, r, d, layouts, c, extra, caps, cut, n)
+
+    sides = [(layouts[i], False), (layouts[(i - 1) % 6], True)]
+    main = (bars[0][0], bars[-1][1])
+    if down is None:
+        down, slack = layout.choose_down(
+            main, r, sides, printer, lambda d: make(d, n=TRIAL_SEGMENTS).manifold)
+    else:
+        flat = float(np.max(bars.reshape(-1, 3) @ down)) + r * sizing.APOTHEM
+        slack = layout.wall_slack(down, flat, sides, printer)
+    for more in RETESSELLATE:  # another tessellation where a boolean pinched the solid
+        part = make(down, bool(slack >= 0), parts.SEGMENTS + more)
+        if not parts.pinched(part.manifold):
+            break
+    return part, float(slack)
+
+
+def build_links(plan: sizing.Plan, bars: list[np.ndarray], printer: Printer,
+                extras: dict) -> tuple[tuple[Part, ...], np.ndarray]:
+    """The six link parts of ``plan`` (their ``bars`` in mm, :func:`link_bars`) and their
+    print-flat slack (mm); ``extras``: per link a solid joined to it (mm) with its capsules
+    (P, a carved body); such links are not cut flat."""
+    built = [_link(plan, i, bars[i], plan.layouts, printer, extras) for i in range(6)]
+    return tuple(p for p, _ in built), np.array([s for _, s in built])
+
+
+def assemble(plan: sizing.Plan, points: np.ndarray, joint_factors: np.ndarray,
+             printer: Printer, kind: str, *, end_bars: np.ndarray | None = None,
+             extras: dict | None = None) -> Assembly:
+    """:func:`build_links` on the polyline ``points`` ``(12, 3)`` (design units; ``end_bars``
+    link 3's bars with an end-effector, design units) plus the printed pieces and the
+    hardware of the joints."""
+    k = plan.scale
+    bars = link_bars(np.asarray(points, float) * k,
+                     None if end_bars is None else np.asarray(end_bars, float) * k)
+    links, slack = build_links(plan, bars, printer, extras or {})
+    for p in links:
+        parts.check_solid(p.manifold, p.name)
+    pieces = parts.piece_parts(plan.layouts)
+    return Assembly((*links, *pieces), plan.scale, plan.layouts,
+                    np.asarray(joint_factors, float), plan, printer, kind,
+                    hardware_of(plan.layouts), slack, None, tuple(bars), dict(extras or {}))
+
+
+def relay(asm: Assembly, j: int, joint: Joint) -> Assembly:
+    """``asm`` with joint ``j`` laid out anew (``joint``): its two links rebuilt (their print
+    flats chosen again: the new bores need their walls), its pieces and hardware replaced."""
+    layouts = tuple(joint if i == j else x for i, x in enumerate(asm.joints))
+    new_parts = list(asm.parts[:6])
+    slack = asm.slack.copy()
+    for i in (j, (j + 1) % 6):
+        new_parts[i], slack[i] = _link(asm.plan, i, asm.bars[i], layouts, asm.printer,
+                                       asm.extras)
+        parts.check_solid(new_parts[i].manifold, new_parts[i].name)
+    others = [p for p in asm.parts[6:] if not (p.role in ("pin", "cap") and p.link == j)]
+    pieces = [p for p in parts.piece_parts((joint,))]
+    hardware = tuple(h for h in asm.hardware if h.joint != j) + hardware_of((joint,))
+    plan = replace(asm.plan, layouts=layouts)
+    return replace(asm, parts=(*new_parts, *others, *pieces), joints=layouts, plan=plan,
+                   hardware=hardware, slack=slack)
+
+
+def bar_vectors(asm: Assembly, j: int) -> tuple[np.ndarray, np.ndarray]:
+    """Link j's bar from ``E_j`` and link j+1's from ``S_{j+1}`` (vectors, mm)."""
+    lo, up = asm.bars[j], asm.bars[(j + 1) % 6]
+    return lo[-1][0] - lo[-1][1], up[0][1] - up[0][0]
+
+
+def with_parts(asm: Assembly, extra: tuple[Part, ...], hardware: tuple[Hardware, ...] = (),
+               base: object | None = None) -> Assembly:
+    """``asm`` with more parts (the base) and hardware (the column rod)."""
+    return replace(asm, parts=asm.parts + extra, hardware=asm.hardware + hardware,
+                   base=base if base is not None else asm.base)

@@ -1,0 +1,283 @@
+"""Verification of the built parts over the whole cycle (after every export).
+
+Each link's group is everything rigid with it: its printed parts, the printed pieces and metal
+hardware on the axes of joints whose lower link it is (a solid of revolution about a joint axis
+is the same in both links' frames), the base and the rod with the grounded link. Every part
+must be a valid, watertight solid in one piece. For every pair of groups and each of
+``samples`` evenly spaced parameters (plus samples uniform in each norm factor's angle, so a
+fast turn gets its share) the moving group is placed by the relative link pose (mm) and
+
+* a broad phase bounds the gap from below by the groups' capsules (each part lies in its
+  capsules); only where that bound is below the required gap does manifold3d compute the
+  exact gap (``min_gap``) and, on contact, the intersection volume;
+* two links of one joint: the joint zone ``W`` (a cylinder about the axis over every piece of
+  the joint) is taken out of both; inside it each link lies in a solid of revolution about the
+  shared axis on its own side of the split (:mod:`parts`), and the relative motion is a
+  rotation about that axis, so their gap there is the same at every angle: measured once
+  (``joint_zone_gap_mm``, less the polygon error);
+* continuity: the gap anywhere between samples is at least the gap at the nearest sample minus
+  a sound bound of the motion between them (:func:`motion_bound.sound_displacement_bounds`);
+  cells where that bound eats the gap are refined. ``continuous_min_gap_mm > 0`` for every
+  pair proves the parts collision-free over the continuous cycle, and ``gap_ok`` that every
+  pair of links without a common joint keeps its required gap (:mod:`stiffness`).
+"""
+
+from __future__ import annotations
+
+import itertools
+import time
+from collections.abc import Callable
+
+import manifold3d as m3d
+import numpy as np
+import trimesh
+
+from paraloop_core.algebra import dq, poly
+from paraloop_core.errors import FabricationError
+from paraloop_core.fabrication import parts
+from paraloop_core.fabrication.assembly import Assembly
+from paraloop_core.linkage import loops
+from paraloop_core.realization.clearance import segment_distance
+from paraloop_core.realization.motion_bound import sound_displacement_bounds, try_motion_bound
+
+Progress = Callable[[float, str], None]
+#: Exact (manifold3d) gap checks one pair may spend refining between samples, and the rounds
+#: of refinement.
+MAX_EXACT_CHECKS = 3000
+REFINE_ROUNDS = 8
+
+
+def part_trimesh(solid: m3d.Manifold) -> trimesh.Trimesh:
+    """A solid as a merged trimesh (mm, home frame)."""
+    mesh = solid.to_mesh()
+    return trimesh.Trimesh(np.asarray(mesh.vert_properties[:, :3], float),
+                           np.asarray(mesh.tri_verts, np.int64), process=True)
+
+
+def _group(asm: Assembly, link: int) -> tuple[m3d.Manifold, np.ndarray, np.ndarray, np.ndarray]:
+    """Solid, capsules ``(n, 2, 3)``, radii ``(n,)`` and joint tags ``(n,)`` of link
+    ``link``'s rigid group (module docstring)."""
+    mine = [p for p in asm.parts if p.link == link]
+    hard = [h for h in asm.hardware if h.link == link]
+    solid = m3d.Manifold.batch_boolean([p.manifold for p in mine] + [h.solid for h in hard],
+                                       m3d.OpType.Add)
+    caps = np.concatenate([p.capsules for p in mine] + [h.capsule[None] for h in hard])
+    radii = np.concatenate([p.radii for p in mine] + [np.array([h.radius]) for h in hard])
+    tags = np.concatenate([p.joint for p in mine] + [np.array([h.joint]) for h in hard])
+    return solid, caps, radii, tags
+
+
+def trimmed(asm: Assembly, j: int, caps: np.ndarray, radii: np.ndarray, tags: np.ndarray
+            ) -> np.ndarray:
+    """``caps`` with each body capsule (tag -1) that ends on joint ``j``'s axis shortened by
+    the length whose material lies inside :func:`zone` (removed there): its end moves along
+    the capsule by ``t`` while the section of radius ``r`` at ``t`` stays within the zone's
+    radius (``t sin(angle) + r``) and axial range (``t |cos(angle)| + r``)."""
+    jt = asm.joints[j]
+    lo, hi = jt.extent
+    wr = jt.reach + parts.EPS_MM / 2
+    out = caps.copy()
+    for n in np.flatnonzero(tags == -1):
+        for end in (0, 1):
+            p, q = caps[n, end], caps[n, 1 - end]
+            rel = p - jt.origin
+            s = float(rel @ jt.w)
+            if np.linalg.norm(rel - s * jt.w) > 1e-6 or not lo <= s <= hi:
+                continue
+            seg = q - p
+            length = float(np.linalg.norm(seg))
+            if length == 0:
+                continue
+            cos = float(seg @ jt.w) / length
+            sin = np.sqrt(max(1.0 - cos * cos, 0.0))
+            room = (hi - s) if cos > 0 else (s - lo)
+            t = min((wr - radii[n]) / max(sin, 1e-12),
+                    (room - radii[n]) / max(abs(cos), 1e-12), 0.5 * length)
+            if t > 0:
+                out[n, end] = p + seg * (t / length)
+    return out
+
+
+def zone(asm: Assembly, j: int, grow: float = 0.0) -> m3d.Manifold:
+    """Joint ``j``'s zone ``W``: a cylinder of the joint's reach plus half a margin over every
+    piece (the rod only as far as the joint's pieces reach)."""
+    jt = asm.joints[j]
+    lo, hi = jt.extent
+    e = parts.EPS_MM / 2 + grow
+    return parts.cylinder(jt.at(lo - e), jt.at(hi + e), jt.reach + e)
+
+
+def zone_hulls(asm: Assembly, j: int) -> tuple[m3d.Manifold, m3d.Manifold]:
+    """Solids of revolution holding each side's material inside :func:`zone` (link j's: up to
+    the split; link j+1's: from it)."""
+    jt = asm.joints[j]
+    lo, hi = jt.extent
+    e = parts.EPS_MM / 2
+    r = jt.reach + e
+    return (parts.cylinder(jt.at(lo - e), jt.at(jt.split - jt.gap / 2), r),
+            parts.cylinder(jt.at(jt.split + jt.gap / 2), jt.at(hi + e), r))
+
+
+def _mm_poses(asm: Assembly, u: np.ndarray) -> np.ndarray:
+    mats = dq.to_matrix(loops.link_poses(asm.joint_factors, poly.param_to_t(u)))
+    mats[..., :3, 3] *= asm.scale
+    return mats
+
+
+def _capsule_gap(ca: tuple, cb: tuple, rel: np.ndarray) -> np.ndarray:
+    """Lower bound ``(T,)`` of the gap between capsule sets ``(segments, radii)``, b moved."""
+    seg_b = np.einsum("tij,nkj->tnki", rel[:, :3, :3], cb[0]) + rel[:, None, None, :3, 3]
+    d = segment_distance(ca[0][None, :, None, 0], ca[0][None, :, None, 1],
+                         seg_b[:, None, :, 0], seg_b[:, None, :, 1])
+    return (d - ca[1][None, :, None] - cb[1][None, None, :]).min(axis=(1, 2))
+
+
+def _affine(m: np.ndarray) -> list:
+    return [list(map(float, row)) for row in m[:3, :4]]
+
+
+def _gaps(asm: Assembly, a: int, b: int, ma: m3d.Manifold, mb: m3d.Manifold,
+          full: tuple[m3d.Manifold, m3d.Manifold], caps: tuple, u: np.ndarray,
+          below: float) -> tuple[np.ndarray, np.ndarray, int]:
+    """Gap (the capsule bound where that reaches ``below``, else exact), intersection volume
+    ``(T,)`` and the number of exact checks, of group a and group b moved, at ``u``."""
+    poses = _mm_poses(asm, u)
+    rel = np.linalg.inv(poses[:, a]) @ poses[:, b]
+    lb = _capsule_gap(caps[0], caps[1], rel)
+    gap, vol = lb.copy(), np.zeros(len(u))
+    for s in np.nonzero(lb < below)[0]:
+        # exact up to 2 mm past the threshold: a capped value must not fake a small gap
+        gap[s] = max(lb[s], ma.min_gap(mb.transform(_affine(rel[s])), below + 2.0))
+        if gap[s] <= 0.0:
+            vol[s] = (full[0] ^ full[1].transform(_affine(rel[s]))).volume()
+    return gap, vol, int(np.sum(lb < below))
+
+
+def _subsamples(u: np.ndarray, idx: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """``counts[i]`` (at most 64) new parameters spread over the cell of sample ``u[idx[i]]``."""
+    nxt = np.append(u[1:], u[0] + 1.0)
+    prv = np.insert(u[:-1], 0, u[-1] - 1.0)
+    n = np.clip(counts, 1, 64).astype(int)
+    cell = np.repeat(np.asarray(idx), n)
+    k = np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n)
+    lo, hi = (u[cell] + prv[cell]) / 2, (u[cell] + nxt[cell]) / 2
+    return np.unique((lo + (hi - lo) * (k + 0.5) / np.repeat(n, n)) % 1.0)
+
+
+def _step(asm: Assembly, a: int, b: int, caps: np.ndarray, radii: np.ndarray,
+          u: np.ndarray) -> np.ndarray:
+    """How far (mm) group b's points move relative to group a about each sample."""
+    ends = caps.reshape(-1, 3) / asm.scale
+    center = 0.5 * (ends.min(0) + ends.max(0))
+    reach = float(np.max(np.linalg.norm(ends - center, axis=1))) + radii.max() / asm.scale
+    jf = asm.joint_factors
+    return asm.scale * sound_displacement_bounds(jf, a, b, center, reach, u,
+                                                 try_motion_bound(jf, a, b, center))
+
+
+def _printed(asm: Assembly, link: int) -> m3d.Manifold:
+    """Link ``link``'s printed parts (not the hardware: a thrust washer touches both links by
+    design), for the clearance between two printed links of one joint."""
+    return m3d.Manifold.batch_boolean([p.manifold for p in asm.parts if p.link == link],
+                                      m3d.OpType.Add)
+
+
+def solid_info(asm: Assembly) -> list[dict]:
+    """Per printed part: watertight, pieces, manifold status, volume, triangles."""
+    out = []
+    for p in asm.parts:
+        tm = part_trimesh(p.manifold)
+        out.append({"name": p.name, "watertight": bool(tm.is_watertight),
+                     "pieces": len(p.manifold.decompose()),
+                     "manifold_status": str(p.manifold.status()),
+                     "volume_mm3": float(p.manifold.volume()),
+                     "triangles": int(p.manifold.num_tri())})
+    return out
+
+
+def verify(asm: Assembly, samples: int = 720, progress: Progress | None = None) -> dict:
+    """The verification report (module docstring), JSON-ready."""
+    if samples < 8:
+        raise FabricationError("verification needs at least 8 samples", "bad-parameters")
+    t0 = time.perf_counter()
+    info = solid_info(asm)
+    groups = [_group(asm, i) for i in range(6)]
+    jf = asm.joint_factors
+    fast = poly.t_to_param(poly.cycle_parameters(
+        jf[:3, 0], np.linalg.norm(jf[:3, 1:4], axis=-1), max(samples // 3, 8))) % 1.0
+    u0 = np.unique(np.concatenate([np.arange(samples) / samples, fast]))
+    need = asm.plan.gaps
+    pairs_out, joint_gaps = [], []
+    for k, (a, b) in enumerate(itertools.combinations(range(6), 2)):
+        if progress is not None:
+            progress(k / 15, f"verifying links {a} and {b}")
+        joint = a if b == a + 1 else (5 if (a, b) == (0, 5) else None)
+        (sa, ca, ra, ta), (sb, cb, rb, tb) = groups[a], groups[b]
+        const, ma, mb = np.inf, sa, sb
+        keep_a, keep_b = np.ones(len(ra), bool), np.ones(len(rb), bool)
+        required = 0.0 if joint is not None else float(need[a, b])
+        if joint is not None:
+            w = zone(asm, joint)
+            ma, mb = sa - w, sb - w
+            lo_hull, up_hull = zone_hulls(asm, joint)
+            lo, up = (sa, sb) if joint == a else (sb, sa)
+            jt = asm.joints[joint]
+            poly_err = (jt.reach + parts.EPS_MM) * (1.0 - np.cos(np.pi / parts.SEGMENTS))
+            search = 2.0
+            raw = min(lo_hull.min_gap(up - w, search), up_hull.min_gap(lo - w, search))
+            const = raw - poly_err if raw < search else np.inf
+            joint_gaps.append(_printed(asm, a).min_gap(_printed(asm, b), search))
+            keep_a, keep_b = ta != joint, tb != joint
+            ca, cb = trimmed(asm, joint, ca, ra, ta), trimmed(asm, joint, cb, rb, tb)
+        # exact gaps only where the capsules do not prove the required gap by themselves
+        search = required + 0.05
+        caps = ((ca[keep_a], ra[keep_a]), (cb[keep_b], rb[keep_b]))
+        gap, vol, n_exact = _gaps(asm, a, b, ma, mb, (sa, sb), caps, u0, search)
+        u = u0
+        for _ in range(REFINE_ROUNDS):  # refine cells whose motion bound eats their margin
+            delta = _step(asm, a, b, cb, rb, u)
+            bad = np.nonzero((gap - delta <= required) & (gap > required))[0]
+            if not len(bad) or np.any(vol > 1e-9):
+                break
+            new = _subsamples(u, bad, np.ceil(2 * delta[bad] / (gap[bad] - required)))
+            if n_exact + len(new) > MAX_EXACT_CHECKS:
+                break
+            g_new, v_new, n_new = _gaps(asm, a, b, ma, mb, (sa, sb), caps, new, search)
+            n_exact += n_new
+            order = np.argsort(np.concatenate([u, new]))
+            u = np.concatenate([u, new])[order]
+            gap, vol = np.concatenate([gap, g_new])[order], np.concatenate([vol, v_new])[order]
+        else:
+            delta = _step(asm, a, b, cb, rb, u)
+        i_min = int(np.argmin(gap))
+        pairs_out.append({
+            "links": [a, b], "adjacent": joint is not None,
+            "min_gap_mm": float(min(gap[i_min], const)), "at_u": float(u[i_min]),
+            "continuous_min_gap_mm": float(min(np.min(gap - delta), const)),
+            "required_gap_mm": required,
+            "joint_zone_gap_mm": float(min(const, 2.0)) if joint is not None else None,
+            "max_step_motion_mm": float(delta.max()), "samples": int(len(u)),
+            "exact_checks": n_exact, "colliding_samples": int(np.sum(vol > 1e-9)),
+            "max_intersection_mm3": float(vol.max())})
+    sound = all(p["watertight"] and p["manifold_status"] == "Error.NoError"
+                and p["pieces"] == 1 for p in info)
+    collisions = sum(p["colliding_samples"] for p in pairs_out)
+    cont = min(p["continuous_min_gap_mm"] for p in pairs_out)
+    gap_ok = all(p["continuous_min_gap_mm"] >= p["required_gap_mm"] - 1e-9
+                 for p in pairs_out if not p["adjacent"])
+    if progress is not None:
+        progress(1.0, "verification done")
+    return {
+        "ok": bool(sound and collisions == 0 and cont > 0),
+        "gap_ok": bool(gap_ok), "watertight": sound, "samples": samples,
+        "min_gap_mm": min(p["min_gap_mm"] for p in pairs_out),
+        "continuous_min_gap_mm": cont,
+        "min_non_adjacent_gap_mm": min(p["continuous_min_gap_mm"] for p in pairs_out
+                                       if not p["adjacent"]),
+        "joint_clearance_mm": float(min(joint_gaps)), "collisions": int(collisions),
+        "method": "gaps at evenly spaced u (and uniform in each norm factor's angle) by "
+                  "capsule bounds, exact manifold3d min_gap where those come within the "
+                  "required gap; continuous bound = gap - sound motion bound between samples; "
+                  "two links of one joint without its zone, whose contents are solids of "
+                  "revolution about the axis",
+        "parts": info, "pairs": pairs_out, "seconds": time.perf_counter() - t0}

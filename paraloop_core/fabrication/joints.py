@@ -1,0 +1,291 @@
+"""The joints of the printed loop: bosses, bores and hardware along each joint axis.
+
+Joint j (axis ``A_j``) joins link j (its bar ends at ``E_j``) and link j+1 (its bar starts at
+``S_{j+1}``). Along the axis, ``s`` is the distance (mm) from ``E_j`` towards ``S_{j+1}`` (unit
+``w``; the pin ``E_j S_{j+1}`` has length ``P``):
+
+* link j's boss is ``s in [-o_lo, m - g/2]``, link j+1's ``[m + g/2, P + o_up]``: the split
+  ``m`` (:func:`split_point`) keeps each bar on its own side; ``g`` is the axial gap (the
+  thrust washer of a screw joint, the printer's clearance otherwise); the outer extensions
+  ``o`` make each boss hold its axle :data:`profiles.ENGAGE_TARGET` diameters beyond its
+  recess;
+* kind ``m3``/``m4``: a socket head screw through both bosses (clearance bores): its head
+  sunk in a counterbore of link j's boss, a thrust washer between the bosses, a
+  nylon-insert lock nut in a hexagonal trap of link j+1's boss (the nut turns with link j+1,
+  the insert keeps the screw from turning in it, so the joint neither loosens nor tightens as
+  it turns round and round); the stock screw length is chosen and link j+1's boss grows so
+  that the tip passes the nut by :data:`PROTRUDE_MM`;
+* kind ``printed-pin``: a printed pin (head + shaft) through both bosses, a printed cap
+  pressed on its end;
+* kind ``rod``: the grounded joint: the grounding rod is the axle, fixed (press fit, glued) in
+  the grounded link's boss, turning in the other link's boss, held by a printed cap glued on
+  its end; beyond the grounded link's boss it goes on down to the base (:mod:`base`).
+
+Every piece is a solid of revolution about the axis (the nut by its corner cylinder), so
+between the two links of a joint nothing changes with the joint angle, and against any other
+link the joint's hardware moves as either of its two links does.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from paraloop_core.errors import FabricationError
+from paraloop_core.fabrication import profiles
+from paraloop_core.fabrication.profiles import Fastener, Printer, Rod
+
+#: Extra depth (mm) of a recess beyond the hardware it holds.
+RECESS_MM = 0.3
+#: Least boss length (mm) past a joint point.
+MIN_OUTER_MM = 0.5
+#: Thread (mm) that must pass the lock nut's insert.
+PROTRUDE_MM = 1.0
+
+
+@dataclass(frozen=True)
+class Piece:
+    """A solid of revolution on a joint axis: ``s in [s0, s1]`` (mm), ``radius`` (the corner
+    radius of a hexagon when ``sides == 6``); ``role`` names it in the guide and the bill of
+    materials; ``printed`` pieces are separate printed parts (pin, cap)."""
+
+    s0: float
+    s1: float
+    radius: float
+    role: str
+    printed: bool = False
+    sides: int = 0  # 0: round
+
+
+@dataclass(frozen=True)
+class Joint:
+    """One joint's layout (module docstring), mm, home pose."""
+
+    index: int
+    kind: str
+    origin: np.ndarray
+    w: np.ndarray
+    length: float
+    split: float
+    gap: float
+    boss_radius: float
+    lower: tuple[float, float]
+    upper: tuple[float, float]
+    bore: tuple[float, float]
+    pieces: tuple[Piece, ...]
+    axle_d: float
+    screw_mm: float | None
+    notch: tuple[float, float]
+    #: the side the grounding rod leaves from (0: past link j's boss, 1: past link j+1's)
+    rod_side: int | None = None
+    #: depth (mm) of the recesses at the outer ends of link j's and link j+1's bosses
+    recess: tuple[float, float] = (0.0, 0.0)
+
+    def at(self, s: float | np.ndarray) -> np.ndarray:
+        """Points ``(..., 3)`` at axial coordinates ``s``."""
+        return self.origin + np.multiply.outer(s, self.w)
+
+    @property
+    def engagement(self) -> tuple[float, float]:
+        """Length (mm) of the axle held in each boss (the bore beyond the recesses)."""
+        return (self.lower[1] - self.lower[0] - self.recess[0],
+                self.upper[1] - self.upper[0] - self.recess[1])
+
+    @property
+    def extent(self) -> tuple[float, float]:
+        """Axial range of the bosses and every piece."""
+        s = [self.lower[0], self.upper[1], *(p.s0 for p in self.pieces),
+             *(p.s1 for p in self.pieces)]
+        return min(s), max(s)
+
+    @property
+    def reach(self) -> float:
+        """Largest radius of the bosses and pieces."""
+        return max(self.boss_radius, *(p.radius for p in self.pieces))
+
+
+def fastener_of(kind: str) -> Fastener:
+    if kind not in profiles.FASTENERS:
+        raise FabricationError(f"joint kind {kind!r} is not a screw", "bad-parameters")
+    return profiles.FASTENERS[kind]
+
+
+def axle_diameter(kind: str, rod: Rod | None = None) -> float:
+    """Diameter (mm) of the axle of a joint ``kind`` (``rod``: the grounding rod's)."""
+    if kind == "rod":
+        return (rod or profiles.DEFAULT_ROD).d_mm
+    if kind == "printed-pin":
+        return profiles.PRINTED_PIN_D_MM
+    return fastener_of(kind).d_mm
+
+
+def bore_radius(kind: str, printer: Printer, rod: Rod | None = None, fixed: bool = False
+                ) -> float:
+    """Radius (mm) of the bore a joint ``kind``'s axle turns in (``fixed``: the grounded
+    link's bore, a press fit on the rod: printed holes come out small, so nominal size)."""
+    if kind == "rod":
+        d = axle_diameter(kind, rod)
+        return d / 2 if fixed else d / 2 + printer.clearance_mm + printer.hole_allowance_mm / 2
+    if kind == "printed-pin":
+        return profiles.PRINTED_PIN_D_MM / 2 + printer.clearance_mm + \
+            printer.hole_allowance_mm / 2
+    return (fastener_of(kind).hole_mm + printer.hole_allowance_mm) / 2
+
+
+def min_boss_radius(kind: str, printer: Printer, rod: Rod | None = None) -> float:
+    """Smallest boss radius (mm): the widest bore with a wall around it, and room for the
+    washer, head or cap seat."""
+    wall = bore_radius(kind, printer, rod) + printer.wall_mm
+    if kind in profiles.FASTENERS:
+        return max(wall, fastener_of(kind).washer_d_mm / 2)
+    return wall
+
+
+def split_point(length: float, lower: np.ndarray, upper: np.ndarray, w: np.ndarray,
+                radii: tuple[float, float], boss: float, gap: float, eps: float
+                ) -> tuple[float, tuple[float, float]]:
+    """Split ``m`` of a joint and the notches left (mm): ``lower`` is link j's bar from
+    ``E_j`` (vector), ``upper`` link j+1's bar from ``S_{j+1}``, ``radii`` their radii. A bar
+    of radius r leaving the axis at axial slope ``a`` and radial slope ``q`` has material
+    within the zone cut's radius ``boss + gap + eps`` only up to the axial reach
+    ``a (boss + gap + eps + r) / q + r`` (at most its length), which must stay on its own side
+    of the split; where both bars lean over the pin the split goes to the middle of the
+    conflict and ``notch`` says how far each still reaches over (the zone cut notches it)."""
+
+    def reach(bar: np.ndarray, toward: np.ndarray, r: float) -> float:
+        n = float(np.linalg.norm(bar))
+        a = float(bar @ toward) / n if n > 0 else 0.0
+        if a <= 0.0:
+            return r * np.sqrt(max(1.0 - a * a, 0.0))  # leans away: its section only
+        q = np.sqrt(max(1.0 - a * a, 0.0))
+        return a * min(n, (boss + gap + eps + r) / max(q, 1e-12)) + r * q
+
+    lo = reach(lower, w, radii[0]) + gap / 2 + eps  # link j's bar needs m >= lo
+    hi = length - reach(upper, -w, radii[1]) - gap / 2 - eps  # link j+1's bar needs m <= hi
+    m = float(np.clip(length / 2, lo, hi) if lo <= hi else (lo + hi) / 2)
+    return m, (max(0.0, lo - m), max(0.0, m - hi))
+
+
+def layout(index: int, origin: np.ndarray, far: np.ndarray, axis: np.ndarray,
+           bars: tuple[np.ndarray, np.ndarray], radii: tuple[float, float], boss: float,
+           kind: str, printer: Printer, *, eps: float, rod: Rod | None = None,
+           rod_side: int | None = None) -> Joint:
+    """Layout of joint ``index`` (module docstring) between ``origin = E_j`` and ``far =
+    S_{j+1}`` (mm), ``axis`` the joint axis (used when the two points coincide), ``bars``
+    link j's bar from ``E_j`` and link j+1's from ``S_{j+1}`` (vectors, mm), their hex
+    ``radii``, the ``boss`` radius; ``rod_side`` (kind ``rod``): where the rod goes on to the
+    base (0: beyond link j's boss, 1: beyond link j+1's). Raises :class:`FabricationError`
+    for a boss too thin for its axle or a screw longer than stock."""
+    if kind not in (*profiles.JOINT_KINDS, "rod") or kind == "print-in-place":
+        raise FabricationError(f"joint kind {kind!r} cannot be laid out", "bad-parameters")
+    origin, far = np.asarray(origin, float), np.asarray(far, float)
+    length = float(np.linalg.norm(far - origin))
+    w = (far - origin) / length if length > 1e-9 else np.asarray(axis, float)[:3] / \
+        np.linalg.norm(np.asarray(axis, float)[:3])
+    if boss < min_boss_radius(kind, printer, rod) - 1e-9:
+        raise FabricationError(f"joint {index}: boss radius {boss:.2f} mm is under the "
+                               f"{min_boss_radius(kind, printer, rod):.2f} mm its axle needs",
+                               "bad-parameters")
+    gap = fastener_of(kind).washer_t_mm if kind in profiles.FASTENERS else printer.clearance_mm
+    m, notch = split_point(length, bars[0], bars[1], w, radii, boss, gap, eps)
+    d = axle_diameter(kind, rod)
+    want = profiles.ENGAGE_TARGET * d
+    # each boss holds the recess at its outer end (screws: the head's seat, the nut's trap)
+    # and then its axle over ``want``; a bar's end may stand out past the boss (it lies in
+    # the bar's own capsule), the recess's pocket is cut through it
+    near, far_pocket = recess_mm(kind)
+    o_lo = max(near + want - (m - gap / 2), MIN_OUTER_MM)
+    o_up = max(far_pocket + want - (length - m - gap / 2), MIN_OUTER_MM)
+    s0, s3 = -o_lo, length + o_up
+    screw, pieces = None, []
+    c = printer.clearance_mm
+    if kind in profiles.FASTENERS:
+        screw, pieces, s3 = _screw_pieces(index, fastener_of(kind), s0, s3, m, gap)
+    elif kind == "printed-pin":
+        head = boss - 0.5
+        pieces = [Piece(s0 - profiles.PRINTED_HEAD_H_MM, s0, head, "pin head", printed=True),
+                  Piece(s0, s3 + c + profiles.PRINTED_CAP_DEPTH_MM, d / 2, "pin",
+                        printed=True),
+                  Piece(s3 + c, s3 + c + profiles.PRINTED_CAP_H_MM, head, "pin cap",
+                        printed=True)]
+    else:  # rod: a cap on the free side's end; beyond the other side it goes on to the base
+        head, cap = boss - 0.5, profiles.PRINTED_CAP_H_MM
+        deep = profiles.PRINTED_CAP_DEPTH_MM
+        if (rod_side or 0) == 0:
+            pieces = [Piece(s3 + c, s3 + c + cap, head, "rod cap", printed=True),
+                      Piece(s0, s3 + c + deep, d / 2, "rod")]
+        else:
+            pieces = [Piece(s0 - c - cap, s0 - c, head, "rod cap", printed=True),
+                      Piece(s0 - c - deep, s3, d / 2, "rod")]
+    fixed = None if kind != "rod" else (rod_side or 0)
+    bores = tuple(bore_radius(kind, printer, rod, fixed == k) for k in (0, 1))
+    return Joint(index, kind, origin, w, length, m, gap, float(boss), (s0, m - gap / 2),
+                 (m + gap / 2, s3), bores, tuple(pieces), d, screw, notch,
+                 None if kind != "rod" else (rod_side or 0), (near, far_pocket))
+
+
+def recess_mm(kind: str) -> tuple[float, float]:
+    """Depth (mm) of the recess at link j's boss's outer end (screw: washer and head in a
+    counterbore) and at link j+1's (screw: the lock nut in a hexagonal trap); 0 for the printed
+    pin and the rod, whose head and cap sit outside."""
+    if kind in profiles.FASTENERS:
+        f = fastener_of(kind)
+        return f.head_h_mm + RECESS_MM, f.nut_h_mm + RECESS_MM
+    return 0.0, 0.0
+
+
+def _screw_pieces(index: int, f: Fastener, s0: float, s3: float, m: float, gap: float
+                  ) -> tuple[float, list[Piece], float]:
+    """Stock screw length, the hardware pieces and the far boss end (grown so the screw's
+    tip passes the nut by :data:`PROTRUDE_MM`): the head in link j's counterbore (it turns on
+    the printed floor: the screw turns with the nut, held by its insert), the thrust washer
+    between the bosses, the nut at the bottom of link j+1's trap."""
+    near, trap = recess_mm(f.name.lower())
+    under = s0 + near  # under the head, on the counterbore's floor
+    nut0 = s3 - trap  # the nut's inner face on the trap's floor
+    need = nut0 + f.nut_h_mm + PROTRUDE_MM - under
+    screw = f.screw_length(need)
+    if screw is None:
+        raise FabricationError(
+            f"joint {index}: the bosses need a {f.name} screw of {need:.0f} mm, longer than "
+            f"stock ({max(f.lengths_mm):g} mm); a shorter joint offset d would do",
+            "bad-parameters")
+    grow = screw - need  # the far boss grows so the nut moves out with the tip
+    s3, nut0 = s3 + grow, nut0 + grow
+    tip = under + screw
+    pieces = [Piece(under - f.head_h_mm, under, f.head_d_mm / 2, "screw head"),
+              Piece(under, tip, f.d_mm / 2, "screw"),
+              Piece(m - gap / 2, m + gap / 2, f.washer_d_mm / 2, "thrust washer"),
+              Piece(nut0, nut0 + f.nut_h_mm, f.nut_corner_r_mm, "lock nut", sides=6)]
+    return screw, pieces, s3
+
+
+def envelope(j: Joint) -> tuple[float, float]:
+    """``(boss reach, hardware reach)`` (mm) of joint ``j`` for the sizing: how far its bosses
+    and printed pieces (radius at most the boss radius) reach past the pin's ends, and the
+    largest ``radius + reach past the ends`` of its metal pieces (a point within ``x`` of a
+    segment's end is within ``x`` of the segment)."""
+    lo, hi = j.lower[0], j.upper[1]
+    boss = max(-lo, hi - j.length, 0.0)
+    hard = 0.0
+    for p in j.pieces:
+        past = max(-p.s0, p.s1 - j.length, 0.0)
+        if p.printed:
+            boss = max(boss, past)
+        else:
+            hard = max(hard, p.radius + past)
+    return boss, hard
+
+
+def to_dict(j: Joint) -> dict:
+    """The report's entry of one joint (mm; ``s`` along the axis from ``E_j``)."""
+    return {"joint": j.index, "kind": j.kind, "axle_diameter_mm": j.axle_d,
+            "screw_length_mm": j.screw_mm, "pin_length_mm": j.length, "split_mm": j.split,
+            "gap_mm": j.gap, "boss_radius_mm": j.boss_radius,
+            "bosses_mm": [list(j.lower), list(j.upper)], "bore_radius_mm": list(j.bore),
+            "recess_mm": list(j.recess), "engagement_mm": list(j.engagement),
+            "engagement_diameters": [e / j.axle_d for e in j.engagement],
+            "notch_mm": list(j.notch), "origin_mm": j.origin.tolist(), "axis": j.w.tolist(),
+            "pieces": [{"role": p.role, "s_mm": [p.s0, p.s1], "radius_mm": p.radius,
+                        "printed": p.printed, "sides": p.sides} for p in j.pieces]}

@@ -1,0 +1,212 @@
+"""Laid for printing: each part's orientation on the bed, its support, the plates.
+
+* **A link's print flat** (:func:`choose_down`): a link is printed lying on one flat face of its
+  hexagonal bar (layers along the bar: the strong direction). Which face is free (a turn
+  about the bar); it is chosen so that cutting everything below that face off (bosses become
+  flat on the bed) leaves every bore its wall and every recess its floor, and among those so
+  that the least surface needs support, judged on the part itself at coarse resolution.
+* **Support** (:func:`support`): a downward face needs support when it leans more than
+  :data:`OVERHANG_DEG` from the vertical and lies above the first layer; reported per part as
+  area and as the share of the part's downward-facing area.
+* **Plates** (:func:`bed_layout`): footprints turned to their smallest box (diagonally where a
+  part needs it), in rows, largest first, :data:`GAP_MM` apart; a new plate when the bed is
+  full.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import trimesh
+
+from paraloop_core.fabrication import profiles, sizing
+from paraloop_core.fabrication.joints import Joint
+from paraloop_core.fabrication.parts import SEAT_MM
+
+#: Steepest overhang (degrees from the vertical) printed without support.
+OVERHANG_DEG = 45.0
+#: Height (mm) above the bed within which a face counts as the first layers (no support).
+FIRST_LAYER_MM = 0.3
+#: Turns about the bar tried for its print flat (degrees), and how many of those whose cut
+#: keeps the walls are built (coarsely) to measure their support.
+TURNS_DEG = np.arange(0.0, 360.0, 10.0)
+TRIALS = 6
+#: Gap between parts on a plate and to the bed's edge (mm).
+GAP_MM = 5.0
+
+
+def to_bed(down: np.ndarray) -> np.ndarray:
+    """``(4, 4)`` rotation taking ``down`` to ``-z``."""
+    return trimesh.geometry.align_vectors(np.asarray(down, float), [0.0, 0.0, -1.0])
+
+
+def support(vertices: np.ndarray, faces: np.ndarray, down: np.ndarray) -> tuple[float, float]:
+    """``(support area, downward-facing area)`` (mm^2) of a mesh printed with ``down`` towards
+    the bed (module docstring)."""
+    v = np.asarray(vertices, float) @ to_bed(down)[:3, :3].T
+    tri = v[np.asarray(faces)]
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    area = 0.5 * np.linalg.norm(n, axis=1)
+    nz = np.divide(n[:, 2], 2 * area, out=np.zeros(len(area)), where=area > 0)
+    low = tri[:, :, 2].min(axis=1) - v[:, 2].min()
+    steep = nz < -np.cos(np.radians(OVERHANG_DEG))
+    return float(area[steep & (low > FIRST_LAYER_MM)].sum()), float(area[nz < -1e-9].sum())
+
+
+def wall_slack(down: np.ndarray, flat: float, joints: list[tuple[Joint, bool]],
+               printer: profiles.Printer) -> float:
+    """Least room (mm) that cutting at ``n . x = flat`` (``down = n``) leaves: each bore keeps
+    ``wall`` over its held length, each recess floor its seat (< 0: the cut breaks in).
+    ``joints``: the link's (joint, upper side) pairs."""
+    n = np.asarray(down, float)
+    slack = np.inf
+    for j, upper in joints:
+        s0, s1 = j.upper if upper else j.lower
+        recess = j.recess[1 if upper else 0]
+        held = (s0, s1 - recess) if upper else (s0 + recess, s1)
+        floor = s1 - recess if upper else s0 + recess
+        bore = j.bore[1 if upper else 0]
+        dist = [flat - float(n @ j.at(s)) for s in held]
+        slack = min(slack, min(dist) - bore - printer.wall_mm)
+        if recess > 0:
+            seat = pocket_radius(j, upper) + 0.5 * printer.wall_mm
+            slack = min(slack, flat - float(n @ j.at(floor)) - seat)
+    return slack
+
+
+def pocket_radius(j: Joint, upper: bool) -> float:
+    """Radius (mm) of a screw joint's recess: the nut trap's corners or the head's seat."""
+    f = profiles.FASTENERS[j.kind]
+    return (f.nut_af_mm + SEAT_MM) / np.sqrt(3.0) if upper else f.head_d_mm / 2 + SEAT_MM
+
+
+def down_candidates(bar: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+    """Unit directions ``(K, 3)`` perpendicular to the bar, one per :data:`TURNS_DEG`."""
+    p0, p1 = (np.asarray(p, float) for p in bar)
+    u = (p1 - p0) / np.linalg.norm(p1 - p0)
+    a = np.cross(u, [1.0, 0, 0] if abs(u[0]) < 0.9 else [0, 1.0, 0])
+    a /= np.linalg.norm(a)
+    b = np.cross(u, a)
+    t = np.radians(TURNS_DEG)
+    return np.cos(t)[:, None] * a + np.sin(t)[:, None] * b
+
+
+def choose_down(bar: tuple[np.ndarray, np.ndarray], radius: float,
+                joints: list[tuple[Joint, bool]], printer: profiles.Printer,
+                build) -> tuple[np.ndarray, float]:
+    """``(down, slack)``: the print flat of a link (module docstring). ``build(down)`` makes
+    the coarse part for a candidate (a manifold); among the candidates whose cut keeps every
+    wall (:func:`wall_slack` >= 0) the one with the least support area wins; if none keeps
+    them, the one with the most slack (the caller then does not cut)."""
+    downs = down_candidates(bar)
+    p0 = np.asarray(bar[0], float)
+    flats = downs @ p0 + radius * sizing.APOTHEM
+    slack = np.array([wall_slack(n, f, joints, printer) for n, f in zip(downs, flats,
+                                                                        strict=True)])
+    ok = np.flatnonzero(slack >= 0)
+    if not len(ok):
+        k = int(np.argmax(slack))
+        return downs[k], float(slack[k])
+    best, best_area = ok[0], np.inf
+    for k in ok[:: max(1, int(np.ceil(len(ok) / TRIALS)))]:
+        mesh = build(downs[k]).to_mesh()
+        area, _ = support(mesh.vert_properties[:, :3], mesh.tri_verts, downs[k])
+        if area < best_area - 1e-6:
+            best, best_area = k, area
+    return downs[best], float(slack[best])
+
+
+@dataclass(frozen=True)
+class Placement:
+    """Where a part is printed: ``plate`` index, ``transform`` ``(4, 4)`` from its home frame
+    (mm) to the plate (bed corner at the origin, z up), print ``height_mm``, ``contact_mm2``
+    on the bed, ``support_mm2`` and ``downward_mm2``, its box on the plate from ``corner_mm``
+    over ``extent_mm``."""
+
+    name: str
+    plate: int
+    transform: np.ndarray
+    height_mm: float
+    contact_mm2: float
+    support_mm2: float
+    downward_mm2: float
+    corner_mm: np.ndarray
+    extent_mm: np.ndarray
+
+
+def contact_area(mesh: trimesh.Trimesh, rot: np.ndarray) -> float:
+    """Area (mm^2) of the faces lying on the bed after ``rot``."""
+    v = trimesh.transform_points(mesh.vertices, rot)
+    z = v[mesh.faces][:, :, 2].max(axis=1) - v[:, 2].min()
+    nz = (mesh.face_normals @ rot[:3, :3].T)[:, 2]
+    return float(mesh.area_faces[(z < 0.05) & (nz < -1 + 1e-6)].sum())
+
+
+def bed_layout(meshes: dict[str, trimesh.Trimesh], downs: dict[str, np.ndarray],
+               bed_mm: tuple[float, float, float]) -> list[Placement]:
+    """Placements of ``meshes`` (home frame, mm) each resting on ``downs[name]`` on plates of
+    the bed ``bed_mm``."""
+    laid = {}
+    for name, mesh in meshes.items():
+        rot = to_bed(downs[name])
+        xy = trimesh.transform_points(mesh.vertices, rot)[:, :2]
+        to_box, _ = trimesh.bounds.oriented_bounds_2D(xy)
+        turn = np.eye(4)
+        turn[:2, :2], turn[:2, 3] = to_box[:2, :2], to_box[:2, 2]
+        m = turn @ rot
+        box = trimesh.transform_points(mesh.vertices, m)
+        room = np.asarray(bed_mm[:2], float) - 2 * GAP_MM
+        if np.any(np.ptp(box[:, :2], axis=0) > room):  # turned (diagonal) if that fits
+            _, angle = sizing.footprint_turn(np.ptp(box[:, :2], axis=0), room)
+            m = trimesh.transformations.rotation_matrix(float(angle), [0, 0, 1]) @ m
+            box = trimesh.transform_points(mesh.vertices, m)
+        m = trimesh.transformations.translation_matrix(-box.min(axis=0)) @ m
+        sup, downward = support(mesh.vertices, mesh.faces, downs[name])
+        laid[name] = (m, np.ptp(box, axis=0), contact_area(mesh, m), sup, downward)
+    out, plate, x, y, row = [], 0, GAP_MM, GAP_MM, 0.0
+    for name in sorted(laid, key=lambda n: -laid[n][1][1]):  # deepest first: even rows
+        m, size, contact, sup, downward = laid[name]
+        if x + size[0] > bed_mm[0] - GAP_MM and x > GAP_MM:  # next row
+            x, y, row = GAP_MM, y + row + GAP_MM, 0.0
+        if y + size[1] > bed_mm[1] - GAP_MM and y > GAP_MM:  # next plate
+            plate, x, y, row = plate + 1, GAP_MM, GAP_MM, 0.0
+        out.append(Placement(name, plate, trimesh.transformations.translation_matrix(
+            [x, y, 0.0]) @ m, float(size[2]), contact, sup, downward, np.array([x, y, 0.0]),
+            size))
+        x, row = x + size[0] + GAP_MM, max(row, size[1])
+    return sorted(out, key=lambda p: p.name)
+
+
+def plate_files(meshes: dict[str, trimesh.Trimesh], layout: list[Placement]
+                ) -> list[tuple[str, bytes]]:
+    """One 3MF per plate with the parts (named) in print orientation."""
+    files = []
+    for plate in sorted({p.plate for p in layout}):
+        scene = trimesh.Scene()
+        for p in layout:
+            if p.plate == plate:
+                scene.add_geometry(meshes[p.name].copy().apply_transform(p.transform),
+                                   node_name=p.name, geom_name=p.name)
+        name = "paraloop.3mf" if plate == 0 else f"paraloop_plate{plate + 1}.3mf"
+        files.append((name, scene.export(file_type="3mf")))
+    return files
+
+
+def layout_entry(layout: list[Placement], bed_mm: tuple[float, float, float]) -> dict:
+    """The report's ``print_layout``: plates, and per part its plate, height, contact,
+    support (area and share of the downward-facing area), transform, and bed fit."""
+    parts = []
+    for p in layout:
+        far = p.corner_mm + p.extent_mm
+        parts.append({"name": p.name, "plate": p.plate + 1, "height_mm": p.height_mm,
+                      "footprint_mm": [float(p.extent_mm[0]), float(p.extent_mm[1])],
+                      "contact_mm2": p.contact_mm2, "support_mm2": p.support_mm2,
+                      "downward_mm2": p.downward_mm2,
+                      "support_share": p.support_mm2 / p.downward_mm2 if p.downward_mm2 else 0.0,
+                      "transform": p.transform.tolist(),
+                      "fits_bed": bool(np.all(far <= np.asarray(bed_mm) + 1e-9))})
+    return {"bed_mm": list(bed_mm), "plates": 1 + max(p.plate for p in layout),
+            "overhang_deg": OVERHANG_DEG, "parts": parts,
+            "method": "support: faces leaning more than 45 deg from the vertical, facing down, "
+                      f"above the first {FIRST_LAYER_MM} mm; share of all downward faces"}

@@ -1,0 +1,144 @@
+"""From a solved design to the printed loop: the realization to print, the parts, the files.
+
+The design's own realization is certified for the paper's thin bars (offset ``d`` 1 % of the
+polyline): its joints are millimetres long at any printable size. :func:`candidates` offers
+roomier realizations instead: the design's loop first, then the other eight, each with the
+joint offset that gives pins of :data:`PIN_MM` at the size the printer allows and bars of
+:data:`RHO_FRACTIONS` of it, each a new search with the same certificate.
+:func:`fabrication.printable.make` picks among them and builds the parts; :func:`export`
+writes the export folder, whose ``result.json`` is the printed loop's result (the format of
+``paraloop solve``), so anyone can check the parts against the motion they will make, and whose
+report says what was chosen instead of the design's realization.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from dataclasses import replace
+
+import numpy as np
+
+from paraloop_core import pipeline
+from paraloop_core.errors import RealizationError
+from paraloop_core.fabrication import export as export_files
+from paraloop_core.fabrication import guide, printable, sizing
+from paraloop_core.fabrication.printable import Candidate, Options, Printed
+from paraloop_core.pipeline import Solution
+from paraloop_core.realization import polyline, realize
+from paraloop_core.result import result_to_dict
+
+#: Pin lengths (mm at the expected size) of the candidates, best first: room for the
+#: screw's head and nut recesses and two diameters of hold in each boss.
+PIN_MM = (20.0, 26.0, 16.0)
+#: Bar radius of the realization search as a share of the offset d: the certified gaps.
+RHO_FRACTIONS = (0.5, 0.35)
+#: Work budget of each candidate search (:meth:`realize.Search.work`).
+WORK = 40_000
+Progress = Callable[[float, str], None]
+
+
+def expected_size(sol: Solution, printer: printable.Printer) -> tuple[float, float, float]:
+    """``(size mm, polyline length l, extent)`` of the design's loop: the size at which its
+    links' skeletons would fill the bed, and the initial polyline's length and box side (design
+    units), to turn pin lengths in mm into offset fractions of l."""
+    real = sol.realization
+    if real is not None:
+        pts, length = np.asarray(real.points, float), real.length
+    else:
+        _, pts6 = polyline.shortest_polyline(sol.loop.joint_factors)
+        pts, length = np.repeat(pts6, 2, axis=0), polyline.polyline_length(pts6)
+    ext = float(np.max(np.ptp(pts, axis=0)))
+    b = sizing.Bounds(pts, np.zeros((0, 4), int), np.zeros(0), np.ones(6), np.ones(6), ext,
+                      np.zeros((6, 6)))
+    return sizing._bed_scale(b, printer) * ext * 0.8, float(length), ext
+
+
+def realize_variant(sol: Solution, loop: int, d_fraction: float, rho_fraction: float,
+                    budget: int = WORK) -> Solution:
+    """``sol`` realized anew on ``loop`` with offset ``d_fraction`` of the polyline and bars
+    ``rho_fraction`` of it (the design's ``p``, fixed vertices and end-effector); raises
+    :class:`RealizationError` when the search finds none."""
+    rs = replace(sol.design.realization, d=None, rho=None, d_fraction=d_fraction,
+                 rho_fraction=rho_fraction)
+    attempt = replace(sol, design=replace(sol.design, loop=loop, realization=rs))
+    jf, in_unit = sol.search_factors(loop)
+    params = dict(p=rs.p, d_fraction=d_fraction, rho_fraction=rho_fraction,
+                  fixed=dict(rs.fixed), max_k=rs.max_k, in_unit=in_unit, budget=budget)
+    if sol.design.end_effector is None:
+        real, ee = realize.realize(jf, **params), None
+    else:
+        from paraloop_core.realization import realize_ee
+
+        ee = realize_ee.realize_with_effector(jf, pipeline.attach_end_effector(attempt),
+                                              **params,
+                                              ee_clearance=sol.design.end_effector.clearance)
+        real = ee.realization
+    return replace(attempt, realization=real, end_effector=ee, realization_report={
+        "status": "found", "attempts": [], "fallback": None})
+
+
+def candidates(sol: Solution, printer: printable.Printer, made: list[Solution]
+               ) -> Iterator[Candidate]:
+    """Lazy candidates (module docstring); each solution a candidate realizes is appended to
+    ``made`` (the chosen one's result is written)."""
+    size, length, ext = expected_size(sol, printer)
+    order = [sol.design.loop] + [i for i in range(len(sol.loops)) if i != sol.design.loop]
+    for loop in order:
+        for pin in PIN_MM if loop == sol.design.loop else PIN_MM[:1]:
+            for rf in RHO_FRACTIONS:
+                d_fraction = pin * ext / (length * size)
+
+                def run(loop=loop, d_fraction=d_fraction, rf=rf) -> tuple:
+                    s = realize_variant(sol, loop, d_fraction, rf)
+                    made.append(s)
+                    return s.realization, s.end_effector
+
+                yield Candidate(f"loop {loop}, offset d = {d_fraction:.3g} l, bars "
+                                f"{rf:g} d", loop, run)
+
+
+def note(sol: Solution, printed: Printed) -> str:
+    """What was printed instead of the design's realization, in words."""
+    loop = sol.design.loop
+    what = f"loop {printed.loop}" + ("" if printed.loop == loop else
+                                    f" (the design's is loop {loop})")
+    return (f"printed: {what}, realized again with joint offsets and bars for real joints "
+            f"({printed.candidate}); the design's own realization keeps the paper's thin bars, "
+            "whose joints are a few millimetres long at a printable size")
+
+
+def make(sol: Solution, opts: Options | None = None, progress: Progress | None = None
+         ) -> tuple[Printed, Solution]:
+    """The printed loop of a solved design and the solution it was built on."""
+    opts = opts or Options()
+    if not sol.design.realization.enabled:
+        raise RealizationError("the design has no realization (enable it in the design "
+                               "file: realization.enabled)", "bad-parameters")
+    made: list[Solution] = []
+    printed = printable.make(candidates(sol, opts.printer, made), opts, sol.design.drive,
+                             progress)
+    chosen = next(s for s in made if s.realization is printed.realization)
+    chosen = replace(chosen, realization_report={
+        **chosen.realization_report, "printed": note(sol, printed)})
+    return printed, chosen
+
+
+def export(sol: Solution, opts: Options | None = None, *, rhino: bool = False,
+           progress: Progress | None = None) -> tuple[list[tuple[str, bytes]], dict, Solution]:
+    """The export folder's files (``paraloop export``, the studio's *Export all*), the report
+    and the printed loop's solution."""
+    import json
+
+    opts = opts or Options()
+
+    printed, chosen = make(sol, opts, progress)
+    report = printed.report
+    report["choice"]["note"] = note(sol, printed)
+    report["choice"]["design_loop"] = sol.design.loop
+    files, meshes, placements = export_files.files(printed.assembly, report, opts.material,
+                                                   rhino=rhino)
+    files += guide.pages(printed, meshes, placements, opts, report)
+    result = json.dumps(result_to_dict(chosen), indent=1, allow_nan=False) + "\n"
+    files.append(("result.json", result.encode()))
+    files.append(("report.json", export_files.report_json(report)))
+    return files, report, chosen
