@@ -2,11 +2,10 @@
 
 *Export result* downloads the result JSON (:func:`export_files`); *Animation* the realized
 loop over one cycle as an animated glTF (:func:`animation_file`, as ``paraloop animate``);
-*Export all* one zip
-``paraloop-<design>.zip`` (:func:`export_zip`) with that JSON and, when the design has a
-realization, the printable parts of :func:`printable.export_printable`, as ``paraloop export``
-writes them (STL per link, 3MF plates, ``assembly.glb``, the assembly guide, ``report.json``
-with sizing, walls and the verification). Size 0 is automatic, as in the CLI.
+*Export all* one zip ``paraloop-<design>.zip`` (:func:`export_zip`) with that JSON and, when
+the design has a realization, the printed loop of :func:`printed.export` as ``paraloop
+export`` writes it (parts, plates, assembly, guide, ``report.json``, the printed loop's
+``result.json`` and its animation). Size 0 is automatic, as in the CLI.
 """
 
 from __future__ import annotations
@@ -21,10 +20,9 @@ from typing import Any
 import numpy as np
 
 from app.state import FabSettings
-from paraloop_core import pipeline
+from paraloop_core import pipeline, printed
 from paraloop_core.design import DriveSettings
-from paraloop_core.fabrication import animate, export, printable, sizing
-from paraloop_core.fabrication.parts import PartSpec, design_scale
+from paraloop_core.fabrication import animate, printable, profiles, spaces
 from paraloop_core.linkage import drive_plan
 from paraloop_core.linkage.drive import TWO_PI
 
@@ -102,73 +100,49 @@ def carve_order(fab: FabSettings) -> list[tuple[int, int]]:
     return [(a, b) for k, a in enumerate(links) for b in links[k + 1:]]
 
 
-def printer_of(fab: FabSettings) -> sizing.Printer:
+def printer_of(fab: FabSettings) -> profiles.Printer:
     """The generic printer profile with the panel's clearance."""
-    return replace(sizing.PRINTERS["generic"], clearance_mm=fab.clearance_mm)
+    return replace(profiles.PRINTERS["generic"], clearance_mm=fab.clearance_mm)
 
 
-def sizing_of(real: Any, fab: FabSettings) -> sizing.Sizing:
-    """Size and radii for the generic profile (:func:`sizing.choose_size`): at the panel's
-    size, or with size 0 the automatic one (before any bed-fit shrink). Raises
-    FabricationError when the given size is below the profile's minimum."""
-    return sizing.choose_size(sizing.realization_limits(real), printer_of(fab),
-                              fab.size_mm if fab.size_mm > 0 else None)
+def options_of(fab: FabSettings) -> printable.Options:
+    """The export options of the panel's settings (size 0: automatic)."""
+    return printable.Options(printer=printer_of(fab), size_mm=fab.size_mm or None,
+                             ground=fab.ground,
+                             joints="print-in-place" if fab.print_in_place else "m3")
 
 
-def size_of(real: Any, fab: FabSettings) -> float:
-    """The size (mm) :func:`sizing_of` uses."""
-    return fab.size_mm if fab.size_mm > 0 else sizing_of(real, fab).size_mm
+def size_of(sol: pipeline.Solution, fab: FabSettings) -> float:
+    """The size (mm) the panel's settings print at: the panel's, else the expected automatic
+    size (the parts' final size is the export's)."""
+    return fab.size_mm if fab.size_mm > 0 else printed.expected_size(sol, printer_of(fab))[0]
 
 
-def fabrication_options(real: Any, fab: FabSettings, carved: bool) -> dict[str, Any]:
-    """Keyword options of :func:`export.export_parts` (and, with ``carved``, of
-    :func:`export.carve_design_spaces`) for a realization and the panel's settings, the part
-    radii from :func:`sizing_of`."""
-    sz = sizing_of(real, fab)
-    size = sz.size_mm
-    opts: dict[str, Any] = {"spec": PartSpec(
-        size_mm=size, clearance_mm=fab.clearance_mm, rho_mm=sz.bar_radius_mm,
-        boss_radius_mm=sz.boss_radius_mm, pin_radius_mm=sz.pin_radius_mm,
-        print_in_place=fab.print_in_place, wall_mm=printer_of(fab).wall_mm)}
-    if carved:
-        scale = design_scale(np.asarray(real.points, float), size)
-        opts["space_radius"] = (fab.space_radius_mm / scale if fab.space_radius_mm > 0
-                                else float(np.median(real.design_space_radii)))
-        opts["resolution"] = fab.resolution or None  # 0: automatic
-        opts["order"] = carve_order(fab)
-    return opts
-
-
-def carve_spaces(real: Any, fab: FabSettings,
-                 progress: Callable[[float, str], None] | None = None,
-                 effector: Any = None) -> tuple[Any, list]:
+def carve_spaces(sol: pipeline.Solution, fab: FabSettings,
+                 progress: Callable[[float, str], None] | None = None) -> tuple[Any, list]:
     """Carve and mesh the realization's design spaces with the panel's settings; an
     end-effector (``Solution.end_effector``) is part of link 3."""
-    return export.carve_design_spaces(real.joint_factors, real.points, real.radius,
-                                           **fabrication_options(real, fab, True),
-                                           effector=effector, progress=progress)
+    real = sol.realization
+    scale = size_of(sol, fab) / float(np.max(np.ptp(real.points, axis=0)))
+    radius = (fab.space_radius_mm / scale if fab.space_radius_mm > 0
+              else float(np.median(real.design_space_radii)))
+    return spaces.carve_design_spaces(real.joint_factors, real.points, real.radius, radius,
+                                      scale=scale, resolution=fab.resolution or None,
+                                      order=carve_order(fab), effector=sol.end_effector,
+                                      progress=progress)
 
 
 def export_zip(solution: pipeline.Solution, fab: FabSettings,
                progress: Callable[[float, str], None] | None = None,
                ) -> tuple[str, bytes, dict | None]:
     """``(zip name, zip bytes, report or None)``: the result JSON plus, when the design has a
-    realization, the fabrication files. Raises :class:`FabricationError` on bad settings."""
+    realization, the printed loop's files as ``paraloop export`` writes them. Raises
+    :class:`FabricationError` on bad settings."""
     files = export_files(solution)
     report = None
-    real = solution.realization
-    if real is not None:
-        opts = fabrication_options(real, fab, fab.carved_parts)
-        spec = opts.pop("spec")  # export_printable sizes the parts for the printer
-        result = printable.export_printable(
-            real, printer=printer_of(fab),
-            size_mm=spec.size_mm if fab.carved_parts else (fab.size_mm or None),
-            print_in_place=fab.print_in_place, ground=fab.ground,
-            effector=solution.end_effector, fixed=dict(solution.design.realization.fixed),
-            alternatives=solution.other_loops(), drive=solution.design.drive,
-            progress=progress, **opts)
-        files += result.files
-        report = json.loads(dict(result.files)["report.json"])  # as downloaded
+    if solution.realization is not None:
+        parts, report, _ = printed.export(solution, options_of(fab), progress=progress)
+        files += parts
     buf = io.BytesIO()
     with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as zf:
         for name, data in files:

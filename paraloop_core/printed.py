@@ -19,10 +19,12 @@ from dataclasses import replace
 import numpy as np
 
 from paraloop_core import pipeline
+from paraloop_core.design import DriveSettings
 from paraloop_core.errors import RealizationError
+from paraloop_core.fabrication import animate, check, guide, printable, sizing
 from paraloop_core.fabrication import export as export_files
-from paraloop_core.fabrication import guide, printable, sizing
 from paraloop_core.fabrication.printable import Candidate, Options, Printed
+from paraloop_core.linkage import drive_plan
 from paraloop_core.pipeline import Solution
 from paraloop_core.realization import polyline, realize
 from paraloop_core.result import result_to_dict
@@ -138,7 +140,41 @@ def export(sol: Solution, opts: Options | None = None, *, rhino: bool = False,
     files, meshes, placements = export_files.files(printed.assembly, report, opts.material,
                                                    rhino=rhino)
     files += guide.pages(printed, meshes, placements, opts, report)
+    glb, how = animation(printed, sol.design.drive)
+    files.append(("animation.glb", glb))
+    report["animation"] = f"animation.glb: the printed parts through one cycle, {how}"
     result = json.dumps(result_to_dict(chosen), indent=1, allow_nan=False) + "\n"
     files.append(("result.json", result.encode()))
     files.append(("report.json", export_files.report_json(report)))
     return files, report, chosen
+
+
+def animation(printed: Printed, settings: DriveSettings, frames: int = 240,
+              seconds: float | None = None) -> tuple[bytes, str]:
+    """``(.glb bytes, how it is driven)``: the printed parts (and hardware) moving through one
+    cycle on their base, as the design's drive turns them (:func:`drive_plan.plan_drive` with
+    the grounded link resting: its motor with the speed schedule, or at constant speed)."""
+    asm = printed.assembly
+    g = printed.base.link if printed.base is not None else 0
+    jf = asm.joint_factors
+    plan = drive_plan.plan_drive(jf, settings, resting_link=g)
+    if plan.schedule is not None:
+        t = animate.scheduled_parameters(jf, plan.schedule, frames)
+        how = f"motor joint {plan.motor} with its speed schedule"
+    else:
+        theta = np.linspace(0.0, 2 * np.pi, frames)
+        t = animate.motor_parameters(jf, plan.motor, theta)
+        how = f"motor joint {plan.motor} at constant speed (no schedule meets the limits)"
+    jf_mm = np.array(jf, float)
+    jf_mm[:, 4:] *= asm.scale  # the same motion with lengths in mm
+    meshes: list[list] = [[] for _ in range(6)]
+    for p in asm.parts:
+        rgb = export_files.color_of(-1 if p.role == "base" else p.link)
+        meshes[p.link].append((check.part_trimesh(p.manifold), rgb))
+    for h in asm.hardware:
+        meshes[h.link].append((check.part_trimesh(h.solid), export_files.STEEL))
+    world = printed.base.world_from_home() if printed.base is not None else None
+    glb = animate.animated_glb(jf_mm, printed.realization.points * asm.scale, 1.0,
+                               frames=frames, seconds=seconds or plan.cycle_time_s, t=t,
+                               meshes=meshes, resting=g, world=world, unit="millimetres")
+    return glb, how

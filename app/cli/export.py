@@ -1,11 +1,13 @@
-"""``paraloop export DESIGN.json --out DIR``: printable parts (STL, 3MF, GLB) and the report.
+"""``paraloop export DESIGN.json --out DIR``: the printed loop, its report and guide.
 
-Solves the design (with its realization), sizes the parts for the printer (``--printer``,
-``--bed``; or at ``--size-mm``; :mod:`paraloop_core.fabrication.printable`), builds and verifies
-them over the cycle and writes ``link_<i>.stl`` (home pose), ``paraloop.3mf`` (the parts laid
-out on the bed; ``paraloop_plate<k>.3mf`` for further plates), ``assembly.glb``, the assembly
-guide ``assembly.md`` with ``assembly_step_<k>.png``, with ``--3dm`` a Rhino ``paraloop.3dm``,
-and ``report.json`` into DIR (all or nothing). DIR is checked before the solve: it must be (or
+Solves the design, chooses the realization, size, joints and base for the printer
+(``--printer``, ``--bed``, ``--material``, ``--joints``; or at ``--size-mm``;
+:mod:`paraloop_core.printed`), builds and verifies the parts over the whole cycle and writes
+the parts (``link_<i>.stl`` and the other printed pieces, assembled home pose), the plates
+(``paraloop.3mf``, ``paraloop_plate<k>.3mf``), ``assembly.glb``, ``animation.glb``, the
+assembly guide (``assembly.md``, ``assembly.html``, ``guide_*.png``), the printed loop's
+``result.json``, with ``--3dm`` a Rhino ``paraloop.3dm``, and ``report.json`` into DIR (all or
+nothing). DIR is checked before the solve: it must be (or
 become) a writable directory holding none of these files unless ``--force``. Exit status 0 when
 verification passes, 2 on refused input (nothing written), 3 when no realization was found or
 verification fails (files written, the report says why), 1 on an internal error.
@@ -23,14 +25,16 @@ from typing import TypeVar
 from app.cli import outputs
 from app.cli.outputs import EXIT_NOT_REALIZED, EXIT_OK, EXIT_REFUSED
 from paraloop_core import design as design_mod
-from paraloop_core import pipeline
+from paraloop_core import pipeline, printed
 from paraloop_core.design import Design
 from paraloop_core.errors import ParaloopError, RealizationError
-from paraloop_core.fabrication import drive_mass, printable, rhino, sizing
+from paraloop_core.fabrication import drive_mass, printable, profiles, rhino
 
 #: the fixed names written into DIR (plus the numbered ones of :data:`NUMBERED`)
-FIXED_NAMES = ("paraloop.3mf", "assembly.glb", "report.json", "assembly.md", "paraloop.3dm")
-NUMBERED = ("link_*.stl", "paraloop_plate*.3mf", "assembly_step_*.png")
+FIXED_NAMES = ("paraloop.3mf", "assembly.glb", "animation.glb", "report.json", "result.json",
+               "assembly.md", "assembly.html", "paraloop.3dm", "base_plate.stl", "paraloop.xml")
+NUMBERED = ("link_*.stl", "pin_*.stl", "pin_cap_*.stl", "rod_cap_*.stl", "paraloop_plate*.3mf",
+            "guide_*.png")
 T = TypeVar("T")
 
 
@@ -74,49 +78,57 @@ def cmd_export(args: argparse.Namespace) -> int:
     try:
         if args.rhino:
             rhino.require()  # before the solve: say at once what is missing
-        printer = _printer(args)
+        opts = _options(args)
     except ValueError as exc:
         print(f"error: {path}: {outputs.one_line(exc)}", file=sys.stderr)
         return EXIT_REFUSED
-    code, result = solve_realized(path, lambda design, sol: printable.export_printable(
-        sol.realization, printer=printer, size_mm=args.size_mm,
-        print_in_place=args.print_in_place, ground=not args.no_ground,
-        ground_axis=args.ground_axis, ground_link=args.ground_link,
-        space_radius=args.carve_radius, resolution=args.resolution, samples=args.samples,
-        effector=sol.end_effector, rhino=args.rhino, fixed=dict(design.realization.fixed),
-        alternatives=sol.other_loops(), drive=design.drive,
-        progress=None if args.quiet else _print_progress))
+    code, result = solve_realized(path, lambda design, sol: printed.export(
+        sol, opts, rhino=args.rhino, progress=None if args.quiet else _print_progress))
     if result is None:
         return code
-    outputs.write_files(out, result.files)
-    ver, sz = result.report["verification"], result.report["sizing"]
-    for warning in result.report["warnings"]:
+    files, report, _ = result
+    outputs.write_files(out, files)
+    for warning in report["warnings"]:
         print(f"warning: {path}: {outputs.one_line(warning)}", file=sys.stderr)
-    print(f"{path} -> {out}: {len(result.files)} files at {sz['size_mm']:.0f} mm ({sz['chosen']}; "
-          f"bars {sz['bar_radius_mm']:.2f} mm, bosses {sz['boss_radius_mm']:.2f} mm, pins "
-          f"{sz['pin_radius_mm']:.2f} mm radius; {printer.name} bed); walls "
-          f"{result.report['walls']['p5_mm']:.2f} mm (5th percentile); min gap "
-          f"{ver['min_gap_mm']:.3f} mm, "
-          f"continuous bound {ver['continuous_min_gap_mm']:.3f} mm, "
-          f"joint clearance {ver['joint_clearance_mm']:.3f} mm")
-    print(f"{path}: {drive_mass.drive_line(result.report['drive'])}")
-    if ver["ok"] and not ver["printable"]:
-        print(f"warning: {path}: parts are collision-free but some gaps are under half the "
-              "clearance and may fuse when printed", file=sys.stderr)
-    if not ver["ok"]:
+    print(f"{path} -> {out}: {len(files)} files; {summary_line(report)}")
+    print(f"{path}: {report['choice']['note']}")
+    print(f"{path}: {drive_mass.drive_line(report['drive'])}")
+    if not report["verification"]["ok"]:
         print(f"error: {path}: verification failed (see {out / 'report.json'})", file=sys.stderr)
         return EXIT_NOT_REALIZED
     return EXIT_OK
 
 
-def _printer(args: argparse.Namespace) -> sizing.Printer:
-    """The printer profile of ``--printer``, with ``--bed`` and ``--clearance`` applied."""
-    printer = sizing.PRINTERS[args.printer]
+def summary_line(report: dict) -> str:
+    """One line a maker reads: size, bars, joints, base, weight, checks."""
+    sz, v, b = report["sizing"], report["verification"], report.get("base")
+    widths = sz["bar_width_mm"]
+    mass = sum(p["mass_g"] for p in report["parts"])
+    joint = report["joints"][0]
+    hardware = {"m3": "M3 screws", "m4": "M4 screws", "printed-pin": "printed pins"}.get(
+        joint["kind"], joint["kind"])
+    base = "no base" if b is None else (
+        f"stands on a {b['plate_diameter_mm']:.0f} mm plate" if b["stands"]
+        else "base to screw down")
+    plates = report["print_layout"]["plates"]
+    return (f"{sz['size_mm']:.0f} mm, bars {min(widths):.1f} - {max(widths):.1f} mm wide, "
+            f"{hardware}, {base}, {mass:.0f} g on {plates} plate{'s' * (plates > 1)}; parts "
+            f"collision-free over the whole cycle: {'yes' if v['ok'] else 'NO'} (least gap "
+            f"{v['min_non_adjacent_gap_mm']:.1f} mm)")
+
+
+def _options(args: argparse.Namespace) -> printable.Options:
+    """The export options of the command line (printer profile with ``--bed`` and
+    ``--clearance`` applied)."""
+    printer = profiles.PRINTERS[args.printer]
     if args.bed is not None:
         printer = replace(printer, name=f"{printer.name}, bed {args.bed}", bed_mm=args.bed)
     if args.clearance is not None:
         printer = replace(printer, clearance_mm=args.clearance)
-    return printer
+    return printable.Options(printer=printer, material=profiles.MATERIALS[args.material],
+                             joints=args.joints, rod=profiles.RODS[args.rod],
+                             size_mm=args.size_mm, ground=not args.no_base,
+                             samples=args.samples)
 
 
 def _bed(text: str) -> tuple[float, float, float]:
@@ -138,29 +150,26 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--out", required=True, help="output directory")
     p.add_argument("--force", action="store_true", help="overwrite existing files in --out")
     p.add_argument("--size-mm", type=outputs.float_range(0.0, 1e5, lo_open=True), default=None,
-                   help="longest side of the linkage in mm (default: chosen for the printer)")
-    p.add_argument("--printer", choices=sorted(sizing.PRINTERS), default="generic",
-                   help="printer profile: bed, walls >= 2 mm, pin radius >= 1 mm, clearance "
-                        "0.3 mm (default generic: 250 x 210 x 210 mm)")
+                   help="longest side of the loop in mm (default: the largest whose parts "
+                        "fit the printer's bed)")
+    p.add_argument("--printer", choices=sorted(profiles.PRINTERS), default="generic",
+                   help="printer profile: bed, walls, fits (default generic: 250 x 210 x 210 "
+                        "mm)")
     p.add_argument("--bed", type=_bed, default=None, help="build volume X,Y,Z in mm")
-    p.add_argument("--clearance", type=outputs.float_range(0.0, 100.0), default=None,
-                   help="joint clearance in mm (default: the printer's, 0.3)")
-    p.add_argument("--print-in-place", action="store_true", help="captured pins with heads")
-    p.add_argument("--no-ground", action="store_true", help="no grounding column")
-    p.add_argument("--ground-link", type=int, choices=range(6), default=None,
-                   help="link that stands on the ground (default: the one whose column keeps "
-                        "the largest clearance)")
-    p.add_argument("--ground-axis", type=int, choices=range(6), default=None,
-                   help="axis carrying the grounding column, one of the grounded link's two "
-                        "(link g: A_{g-1} or A_g; default: the best)")
-    p.add_argument("--carve-radius", type=outputs.float_range(0.0, 1e12, lo_open=True),
-                   default=None,
-                   help="carve design spaces of this radius (design units) as link bodies")
-    p.add_argument("--resolution", type=outputs.int_range(8, 1024), default=None,
-                   help="voxels along a design space (8..1024; default: automatic, 128..256 "
-                        "so that every space is several voxels thick)")
+    p.add_argument("--clearance", type=outputs.float_range(0.0, 5.0), default=None,
+                   help="clearance of moving printed faces in mm (default: the printer's)")
+    p.add_argument("--material", choices=sorted(profiles.MATERIALS), default="pla",
+                   help="print material (density, stiffness; default pla)")
+    p.add_argument("--joints", choices=profiles.JOINT_KINDS, default="m3",
+                   help="m3/m4: screw and lock nut through both links (default m3); "
+                        "printed-pin: printed pin and pressed-on cap; print-in-place: "
+                        "refused for spatial loops, with the reason")
+    p.add_argument("--rod", choices=sorted(profiles.RODS), default=profiles.DEFAULT_ROD.name,
+                   help="the grounding rod (also the grounded joint's axle)")
+    p.add_argument("--no-base", action="store_true",
+                   help="no grounding rod and base plate (the loop is held by hand)")
     p.add_argument("--samples", type=outputs.int_range(8, 100_000), default=720,
-                   help="verification samples (8..100000)")
+                   help="verification samples over the cycle (8..100000)")
     p.add_argument("--3dm", dest="rhino", action="store_true",
                    help="also write paraloop.3dm (Rhino; needs the rhino3dm package)")
     p.add_argument("--quiet", action="store_true", help="no progress lines")

@@ -207,7 +207,7 @@ class DrivePanel:
             (sol, settings), (report, real), key = self._source, self._report, self._key
         entry = None if report is None else report.get("drive")
         fresh = entry is not None and _same_realization(real, sol.realization)
-        other = None if report is None else report.get("sizing", {}).get("realization")
+        other = None if report is None else report.get("choice", {}).get("note")
         if fresh and other:  # the export printed another realization than the studio's
             entry = {**entry, "exported_realization": other}
         return sol, settings, entry if fresh else None, key

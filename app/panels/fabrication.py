@@ -13,6 +13,7 @@ import dataclasses
 import math
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
 import viser
 
 from app.exports import CUSTOM, ORDER_PRESETS, carve_spaces, export_zip, parse_order, size_of
@@ -23,7 +24,6 @@ from app.state import FabSettings
 from app.worker import FRAME
 from paraloop_core.errors import FabricationError
 from paraloop_core.fabrication import drive_mass
-from paraloop_core.fabrication.parts import design_scale
 
 if TYPE_CHECKING:
     from app.host import StudioHost
@@ -208,8 +208,7 @@ class FabricationPanel:
         if real is None:
             raise FabricationError("the design has no realization (switch Realize on)",
                                    "bad-parameters")
-        cv, bodies = carve_spaces(real, fab, lambda f, m: self._progress(f, m, "Carving"),
-                                  effector=sol.end_effector)
+        cv, bodies = carve_spaces(sol, fab, lambda f, m: self._progress(f, m, "Carving"))
         studio, st = self.studio, self.studio.state
         with self.server.atomic():
             studio.scene.set_spaces(real.joint_factors, bodies)
@@ -217,8 +216,8 @@ class FabricationPanel:
             studio.scene.apply_layers(st.hidden)
         self.carving = cv.report
         margin = cv.report["max_motion_margin"]
-        size = size_of(real, fab)
-        mm = margin * design_scale(real.points, size)
+        size = size_of(sol, fab)
+        mm = margin * size / float(np.max(np.ptp(real.points, axis=0)))
         empty = [i for i, b in enumerate(bodies) if b is None]
         self.bound.content = (
             f"**Continuous-motion bound:** motion margin {margin:.3g} design units "
@@ -247,17 +246,17 @@ class FabricationPanel:
             self.verification.content = "*Verification: no realization, no parts.*"
             self.progress_text.content = f"Exported {name}."
             return
-        v, sz = report["verification"], report["sizing"]
+        v, sz, b = report["verification"], report["sizing"], report.get("base")
         word = "ok ✓" if v["ok"] else "FAILED ✗"
+        stands = "no base" if b is None else ("stands on its base" if b["stands"] else
+                                              "screw its base down")
         self.verification.content = (
-            f"**Size {sz['size_mm']:.0f} mm** ({sz['chosen']}), walls >= "
-            f"{report['walls']['p5_mm']:.2f} mm (5th percentile), bars "
-            f"{2 * sz['bar_radius_mm']:.2f} mm thick. "
-            f"**Verification: {word}** min gap {v['min_gap_mm']:.3f} mm, certified continuous "
-            f"gap {v['continuous_min_gap_mm']:.3f} mm, joint clearance "
-            f"{v['joint_clearance_mm']:.3f} mm" + ("" if v["printable"] else
-                                                   " (some gaps under half the clearance)")
-            + f". **Drive:** {drive_mass.drive_line(report['drive'])}")
+            f"**Size {sz['size_mm']:.0f} mm**, bars {min(sz['bar_width_mm']):.1f} - "
+            f"{max(sz['bar_width_mm']):.1f} mm wide, {stands}. "
+            f"**Verification: {word}** least gap between links without a common joint "
+            f"{v['min_non_adjacent_gap_mm']:.1f} mm over the whole cycle, joint clearance "
+            f"{v['joint_clearance_mm']:.2f} mm. {report['choice']['note']}. "
+            f"**Drive:** {drive_mass.drive_line(report['drive'])}")
         self.progress_text.content = f"Exported {name}."
         if not v["ok"]:
             studio.notify("Verification failed", "see report.json in the zip", error=True)

@@ -38,8 +38,6 @@ from paraloop_core.fabrication.export import LINK_COLORS
 from paraloop_core.linkage import drive, loops
 from paraloop_core.linkage.schedule import SpeedSchedule
 
-#: Root rotation (xyzw): -90 deg about X takes design Z-up to glTF Y-up.
-Z_UP_TO_Y_UP = (-float(np.sqrt(0.5)), 0.0, 0.0, float(np.sqrt(0.5)))
 #: Capsule tessellation (latitude, longitude sections): smooth at viewer scale, ~0.2 MB a file.
 CAPSULE_COUNT = (12, 24)
 _FLOAT, _UINT = 5126, 5125  # glTF componentType
@@ -138,15 +136,19 @@ def link_meshes(points: np.ndarray, radius: float) -> list[trimesh.Trimesh]:
                                       for e in (2 * i, 2 * i + 1)]) for i in range(6)]
 
 
-def node_keyframes(joint_factors: np.ndarray, t: np.ndarray, centre: np.ndarray
-                   ) -> tuple[np.ndarray, np.ndarray]:
+def node_keyframes(joint_factors: np.ndarray, t: np.ndarray, centre: np.ndarray,
+                   resting: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """Link node keyframes at parameters ``t`` ``(T,)`` for meshes stored relative to
     ``centre`` ``(3,)``: translations ``(T, 6, 3)`` and rotations ``(T, 6, 4)`` (glTF xyzw,
     neighbours in one hemisphere), so that ``R (x - c) + tr + c`` is the link pose of
-    :func:`loops.link_poses` applied to a home point ``x``."""
+    :func:`loops.link_poses` relative to link ``resting`` (which stays still) applied to a
+    home point ``x``."""
     jf = _finite_array(joint_factors, (6, 8), "joint_factors")
     c = _finite_array(centre, (3,), "centre")
     poses = dq.normalize(loops.link_poses(jf, t))  # (T, 6, 8) unit, p0 >= 0
+    if resting:
+        poses = dq.normalize(dq.mul(dq.conj(poses[:, resting, None]), poses))
+        poses = np.where(poses[..., :1] < 0, -poses, poses)
     translation = dq.transform_points(poses, c) - c
     wxyz = poses[..., :4]
     # normalize() picks p0 >= 0, so a link turning past pi flips sign; interpolating between q
@@ -202,7 +204,9 @@ def _glb(doc: dict, data: bytes) -> bytes:
 
 
 def animated_glb(joint_factors: np.ndarray, points: np.ndarray, radius: float, *,
-                 frames: int = 240, seconds: float = 10.0, t: np.ndarray | None = None
+                 frames: int = 240, seconds: float = 10.0, t: np.ndarray | None = None,
+                 meshes: list[list[tuple[trimesh.Trimesh, np.ndarray]]] | None = None,
+                 resting: int = 0, world: np.ndarray | None = None, unit: str = "design units"
                  ) -> bytes:
     """Binary glTF 2.0 of the loop moving through one full cycle (module docstring).
 
@@ -211,7 +215,11 @@ def animated_glb(joint_factors: np.ndarray, points: np.ndarray, radius: float, *
     :class:`~paraloop_core.realization.certified.Realization`, design units; ``frames`` >= 2
     keyframes over ``seconds`` > 0, at the parameters ``t`` ``(frames,)`` if given (e.g.
     :func:`scheduled_parameters`: a motor's speed schedule), else :func:`keyframe_parameters`
-    (joint 0 at constant speed). Raises ValueError on bad input."""
+    (joint 0 at constant speed). The printed loop: ``meshes`` per link its parts ``(mesh,
+    rgb)`` in the coordinates of ``points`` (e.g. mm with points in mm), link ``resting``
+    still (the grounded one, its base among its meshes), ``world`` ``(4, 4)`` placing the
+    whole on the table (``Base.world_from_home``), ``unit`` named in the file. Raises
+    ValueError on bad input."""
     jf = _finite_array(joint_factors, (6, 8), "joint_factors")
     pts = _finite_array(points, (12, 3), "points")
     rho = _positive(radius, "radius")
@@ -225,20 +233,25 @@ def animated_glb(joint_factors: np.ndarray, points: np.ndarray, radius: float, *
     if not (np.diff(times) > 0).all():  # glTF requires strictly increasing inputs
         raise ValueError(f"{n} frames over {duration:g} s are too close for float32 times")
     centre = pts.mean(axis=0)
-    translation, xyzw = node_keyframes(jf, np.asarray(t, dtype=np.float64), centre)
+    translation, xyzw = node_keyframes(jf, np.asarray(t, dtype=np.float64), centre, resting)
+    if meshes is None:
+        meshes = [[(m, LINK_COLORS[i])] for i, m in enumerate(link_meshes(pts, rho))]
 
     buf = _Buffer()
-    meshes, materials = [], []
-    for i, mesh in enumerate(link_meshes(pts - centre, rho)):
-        prim = {"attributes": {
-            "POSITION": buf.add(mesh.vertices, "VEC3", _ARRAY_BUFFER, bounds=True),
-            "NORMAL": buf.add(mesh.vertex_normals, "VEC3", _ARRAY_BUFFER)},
-            "indices": buf.add(mesh.faces.reshape(-1), "SCALAR", _ELEMENT_ARRAY_BUFFER),
-            "material": i, "mode": 4}
-        meshes.append({"name": f"link_{i}", "primitives": [prim]})
-        materials.append({"name": f"link_{i}", "pbrMetallicRoughness": {
-            "baseColorFactor": _linear_rgb(LINK_COLORS[i]), "metallicFactor": 0.0,
-            "roughnessFactor": 0.6}})
+    gl_meshes, materials = [], []
+    for i, items in enumerate(meshes):
+        prims = []
+        for mesh, rgb in items:
+            prims.append({"attributes": {
+                "POSITION": buf.add(mesh.vertices - centre, "VEC3", _ARRAY_BUFFER,
+                                    bounds=True),
+                "NORMAL": buf.add(mesh.vertex_normals, "VEC3", _ARRAY_BUFFER)},
+                "indices": buf.add(mesh.faces.reshape(-1), "SCALAR", _ELEMENT_ARRAY_BUFFER),
+                "material": len(materials), "mode": 4})
+            materials.append({"name": f"link_{i}_{len(prims)}", "pbrMetallicRoughness": {
+                "baseColorFactor": _linear_rgb(rgb), "metallicFactor": 0.0,
+                "roughnessFactor": 0.6}})
+        gl_meshes.append({"name": f"link_{i}", "primitives": prims})
     time_acc = buf.add(times, "SCALAR", bounds=True)
     samplers, channels = [], []
     for i in range(6):
@@ -249,18 +262,23 @@ def animated_glb(joint_factors: np.ndarray, points: np.ndarray, radius: float, *
             channels.append({"sampler": len(samplers) - 1,
                              "target": {"node": 1 + i, "path": path}})
 
-    root = {"name": "paraloop", "children": list(range(1, 7)), "rotation": list(Z_UP_TO_Y_UP),
-            # the root's translation acts after its rotation: c in glTF axes
-            "translation": [centre[0], centre[2], -centre[1]]}
+    # the root: design Z-up to glTF Y-up, after placing on the table, after the centre
+    place = np.eye(4) if world is None else np.asarray(world, float)
+    z_to_y = np.array([[1.0, 0, 0, 0], [0, 0, 1, 0], [0, -1, 0, 0], [0, 0, 0, 1]])
+    shift = np.eye(4)
+    shift[:3, 3] = centre
+    root = {"name": "paraloop", "children": list(range(1, 7)),
+            "matrix": (z_to_y @ place @ shift).T.reshape(-1).tolist()}
     doc = {
         "asset": {"version": "2.0", "generator": "paraloop animate", "extras": {
-            "units": "design units (1 glTF unit = 1 design unit)",
+            "units": f"{unit} (1 glTF unit = 1 {unit.rstrip('s')})",
             "axes": "design Z-up; the root node rotates it to glTF Y-up",
-            "centre": centre.tolist(), "frames": n, "seconds": duration}},
+            "centre": centre.tolist(), "frames": n, "seconds": duration,
+            "resting_link": resting}},
         "scene": 0,
         "scenes": [{"name": "paraloop", "nodes": [0]}],
         "nodes": [root] + [{"name": f"link_{i}", "mesh": i} for i in range(6)],
-        "meshes": meshes,
+        "meshes": gl_meshes,
         "materials": materials,
         "animations": [{"name": "cycle", "samplers": samplers, "channels": channels}],
         "buffers": [{"byteLength": len(buf.data)}],

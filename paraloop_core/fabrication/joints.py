@@ -289,3 +289,31 @@ def to_dict(j: Joint) -> dict:
             "notch_mm": list(j.notch), "origin_mm": j.origin.tolist(), "axis": j.w.tolist(),
             "pieces": [{"role": p.role, "s_mm": [p.s0, p.s1], "radius_mm": p.radius,
                         "printed": p.printed, "sides": p.sides} for p in j.pieces]}
+
+
+#: Steepest lean (degrees from the vertical) of a print-in-place joint's axis: its axial gaps
+#: print as bridges over the lower part, which a steeper axis would need supports for, and
+#: supports in a 0.4 mm gap fuse the joint.
+IN_PLACE_TILT_DEG = 30.0
+
+
+def in_place_refusal(axes: np.ndarray) -> str | None:
+    """Why a loop with joint ``axes`` ``(6, 3)`` (directions) cannot print in place, or None:
+    every axis must lean at most :data:`IN_PLACE_TILT_DEG` from one print direction."""
+    d = np.asarray(axes, float)[:, :3]
+    d = d / np.linalg.norm(d, axis=1, keepdims=True)
+    k = np.arange(4000) + 0.5  # directions spread evenly over the sphere (Fibonacci)
+    z = 1 - 2 * k / 4000
+    phi = np.pi * (1 + 5**0.5) * k
+    ups = np.stack([np.sqrt(1 - z * z) * np.cos(phi), np.sqrt(1 - z * z) * np.sin(phi), z], 1)
+    lean = np.degrees(np.arccos(np.clip(np.abs(ups @ d.T), 0.0, 1.0))).max(axis=1)
+    best = int(np.argmin(lean))
+    if lean[best] <= IN_PLACE_TILT_DEG:
+        return None
+    worst = np.degrees(np.arccos(np.clip(np.abs(d @ ups[best]), 0, 1)))
+    return (f"print-in-place needs every joint axis within {IN_PLACE_TILT_DEG:g} deg of the "
+            f"vertical in one print orientation (its gaps print as bridges; supports in a "
+            f"joint's gap fuse it), but this spatial loop's six axes lean up to "
+            f"{lean[best]:.0f} deg in the best one (joints "
+            + ", ".join(f"{j}: {a:.0f} deg" for j, a in enumerate(worst))
+            + "); print the parts separately with --joints m3 (screws) or printed-pin")

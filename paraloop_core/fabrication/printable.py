@@ -42,6 +42,7 @@ from paraloop_core.fabrication import (
 )
 from paraloop_core.fabrication.assembly import Assembly
 from paraloop_core.fabrication.profiles import Material, Printer, Rod
+from paraloop_core.linkage import loops
 from paraloop_core.realization.certified import Realization
 
 Progress = Callable[[float, str], None]
@@ -122,7 +123,8 @@ def choose(candidates: Iterable[Candidate], opts: Options, progress: Progress | 
            ) -> tuple[list[tuple[Candidate, Realization, object | None, sizing.Plan]],
                       list[str]]:
     """The sized candidates, best first (module docstring), and what was tried. Raises
-    :class:`FabricationError` naming every failure when none can be sized."""
+    :class:`FabricationError` naming every failure when none can be sized, and for joints
+    printed in place on a loop whose axes do not allow it (:func:`joints.in_place_refusal`)."""
     tried, sized = [], []
     for n, cand in enumerate(candidates):
         if n >= MAX_CANDIDATES:
@@ -131,10 +133,16 @@ def choose(candidates: Iterable[Candidate], opts: Options, progress: Progress | 
             progress(n / MAX_CANDIDATES, f"sizing {cand.label}")
         try:
             real, ee = cand.make()
+            if opts.joints == "print-in-place":
+                why = joints.in_place_refusal(loops.factor_axes(real.joint_factors))
+                raise FabricationError(why or "print-in-place is not built by paraloop",
+                                       "bad-parameters")
             plan = sizing.plan(real, opts.printer, opts.material, opts.joints, opts.rod,
                                size_mm=opts.size_mm,
                                fit=lambda p, r=real: predicted_fit(p, r.points, opts.printer))
         except (RealizationError, FabricationError) as exc:
+            if opts.joints == "print-in-place":
+                raise
             tried.append(f"{cand.label}: {exc}")
             continue
         tried.append(f"{cand.label}: {plan.size_mm:.0f} mm, bars "
