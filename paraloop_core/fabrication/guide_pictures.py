@@ -158,13 +158,28 @@ def exploded_scene(groups: Sequence[tuple[Sequence[Piece], float]], joint: Joint
     side /= np.linalg.norm(side)
     lines: list[Line3 | Arrow3] = [Line3(at + (lo - margin) * w, at + (hi + margin) * w,
                                          JOINT_COLOR, dashed=True, width=2.0)]
+    probe = View(size=PROBE, direction=tuple(eye), up=tuple(up), fit=ring, supersample=1)
+    who = render.coverage(items, probe)
+    cam = render.camera(probe, np.concatenate([it.mesh.vertices for it in items]), 1)
     for off in offsets:
-        if off != 0.0:
-            base = at + side * 1.8 * joint.radius + (joint.s0 if off > 0 else joint.s1) * w
-            lines.append(Arrow3(base + off * w, base + 0.25 * off * w, ARROW_COLOR))
+        if off == 0.0:
+            continue
+        arrows = []
+        for sign in (1.0, -1.0):  # beside the axis, on the side with less in the way
+            base = at + sign * side * 1.8 * joint.radius + (joint.s0 if off > 0 else joint.s1) * w
+            arrows.append(Arrow3(base + off * w, base + 0.25 * off * w, ARROW_COLOR))
+        lines.append(min(arrows, key=lambda a: _covered(who, cam, a)))
     labels.append(Label(f"axis of joint {joint.number}", at + (lo - 0.9 * margin) * w,
                         JOINT_COLOR))
     return Scene(tuple(items), tuple(labels), tuple(lines), view)
+
+
+def _covered(who: np.ndarray, cam: render.Camera, arrow: Arrow3) -> int:
+    """Pixels of ``who`` (a coverage) under the arrow's shaft, 20 samples."""
+    p = cam.project(np.linspace(arrow.tail, arrow.head, 20))
+    col = np.clip(p[:, 0].astype(int), 0, who.shape[1] - 1)
+    row = np.clip(p[:, 1].astype(int), 0, who.shape[0] - 1)
+    return int((who[row, col] >= 0).sum())
 
 
 def _near(v: np.ndarray, at: np.ndarray, w: np.ndarray, lo: float, hi: float,
