@@ -260,6 +260,10 @@ def test_loop_scene_names_every_piece_and_joint():
     texts = [lab.text for lab in scene.labels]
     assert texts == [f"link {k}" for k in range(4)] + [f"joint {k}" for k in range(4)]
     assert Image.open(io.BytesIO(scene.png())).size == (500, 380)
+    where = guide_pictures.locator_scene(pieces, joints[1], (1, 2), scene.view)
+    assert [it.alpha == 1.0 for it in where.items] == [False, True, True, False]
+    assert [lab.text for lab in where.labels] == ["link 1", "link 2", "joint 1"]
+    assert where.view == scene.view
 
 
 def test_exploded_scene_pulls_groups_apart_along_the_axis():
@@ -287,7 +291,8 @@ def test_assembly_pictures_of_todays_parts():
     from test_parts import example_assembly
 
     scenes = dict(guide_pictures.assembly_scenes(example_assembly(False)))
-    assert list(scenes) == ["assembly_loop.png"] + [f"assembly_joint_{j}.png" for j in range(6)]
+    assert list(scenes) == ["assembly_loop.png"] + [f"assembly_where_{j}.png" for j in range(6)] \
+        + [f"assembly_joint_{j}.png" for j in range(6)]
     loop = scenes["assembly_loop.png"]
     assert [lab.text for lab in loop.labels] == \
         [f"link {k}" for k in range(6)] + [f"joint {k}" for k in range(6)]

@@ -1,10 +1,11 @@
 """The assembly guide as one HTML page (``assembly.html``) from structured content.
 
 One self-contained file: inline CSS (readable on a phone, printable: steps are not split
-across pages), pictures referenced as image files beside it (plain file names only), every
-text HTML-escaped. Sections in order: title and summary, warnings, facts (size, weight,
-hardware, print time, the loop and motor, ...), overview pictures, bill of materials, print
-settings per profile, parts, numbered assembly steps. Empty sections are left out.
+across pages), pictures referenced as image files beside it (plain file names only; a tap
+opens one at full size), every text HTML-escaped. Sections in order: title and summary,
+warnings, facts (size, weight, hardware, print time, the loop and motor, ...), overview
+pictures, bill of materials, print settings per profile, parts, numbered assembly steps.
+Empty sections are left out.
 """
 
 from __future__ import annotations
@@ -130,7 +131,9 @@ def _figure(p: Picture) -> str:
                                "(letters, digits, . _ -; .png .jpg .jpeg .gif .webp .svg)",
                                "bad-parameters")
     cap = f"<figcaption>{_e(p.caption)}</figcaption>" if p.caption else ""
-    return f'<figure><img src="{_e(p.file)}" alt="{_e(p.alt)}" loading="lazy">{cap}</figure>'
+    # a tap opens the picture at full size (its labels are small on a phone's screen)
+    return f'<figure><a href="{_e(p.file)}"><img src="{_e(p.file)}" alt="{_e(p.alt)}" ' \
+           f'loading="lazy"></a>{cap}</figure>'
 
 
 def _table(head: tuple[str, ...], rows: list[list[tuple[str, bool]]]) -> str:

@@ -12,8 +12,9 @@ building parts: :class:`Piece` (a rigid solid with a name and colour, mm) and :c
   its place, framed on the joint. The axis is drawn left to right (positive offsets to the
   right); the eye turns about it (every 30 deg, tilted 15 deg either way along it) to see the
   pieces flagged ``focus`` (pin, bore) best, preferring views from above.
-* :func:`assembly_pictures`: both for today's :class:`parts.Assembly` (pin of link i, bore of
-  link i+1 highlighted).
+* :func:`locator_scene`: where one joint is: its two pieces in colour, the rest faint.
+* :func:`assembly_scenes`: all three for today's :class:`parts.Assembly` (pin of link i, bore
+  of link i+1 highlighted).
 """
 
 from __future__ import annotations
@@ -36,6 +37,8 @@ BORE_COLOR: RGB = (40, 205, 220)
 BORE_DARK: RGB = (0, 95, 120)
 JOINT_COLOR: RGB = (30, 30, 30)
 ARROW_COLOR: RGB = (215, 30, 30)
+#: Pieces not involved in a step.
+FAINT: RGB = (190, 190, 190)
 #: Size (px) of the pictures and of the quick renders that choose their views.
 SIZE = (1000, 750)
 PROBE = (200, 150)
@@ -116,10 +119,27 @@ def loop_scene(pieces: Sequence[Piece], joints: Sequence[Joint], size=SIZE) -> S
     return Scene(items, tuple(labels), (), view)
 
 
+def locator_scene(pieces: Sequence[Piece], joint: Joint, shown: Sequence[int],
+                  view: View) -> Scene:
+    """Where joint ``joint`` is in the loop: the pieces ``shown`` in colour and named, the
+    others faint grey, the joint numbered; seen as ``view`` (e.g. the loop picture's)."""
+    items, labels = [], []
+    for k, p in enumerate(pieces):
+        if k in shown:
+            items.append(Item(p.mesh, p.color))
+            if p.name:
+                labels.append(Label(p.name, p.mesh.centroid, p.color, item=k))
+        else:
+            items.append(Item(p.mesh, FAINT, alpha=0.3, edges=False))
+    labels.append(Label(f"joint {joint.number}", joint.point, JOINT_COLOR, item=joint.piece))
+    return Scene(tuple(items), tuple(labels), (), view)
+
+
 def exploded_scene(groups: Sequence[tuple[Sequence[Piece], float]], joint: Joint,
-                   size=SIZE) -> Scene:
+                   size: tuple[int, int] | None = None) -> Scene:
     """Joint ``joint`` pulled apart: each group of pieces shifted by its offset (mm along
-    the axis), framed on the joint (module docstring)."""
+    the axis), framed on the joint (module docstring); ``size`` (px, None: :data:`SIZE`'s
+    width and the height the frame needs, at least 64 % of SIZE's)."""
     w = np.asarray(joint.axis, float)
     w = w / np.linalg.norm(w)
     at = np.asarray(joint.point, float)
@@ -153,6 +173,9 @@ def exploded_scene(groups: Sequence[tuple[Sequence[Piece], float]], joint: Joint
             if score > best:
                 best, pick = score, (eye, up, ring)
     eye, up, ring = pick
+    if size is None:  # as wide as the default, as high as the joint's frame needs
+        size = (SIZE[0], int(np.clip(SIZE[0] * 2.5 * margin / (hi - lo + 2 * margin),
+                                     0.64 * SIZE[1], SIZE[1])))
     view = View(size=size, direction=tuple(eye), up=tuple(up), fit=ring, margin=0.06)
     side = np.cross(w, eye)
     side /= np.linalg.norm(side)
@@ -200,15 +223,19 @@ def _frame(at: np.ndarray, w: np.ndarray, side: np.ndarray, lo: float, hi: float
 
 
 def assembly_scenes(asm: parts.Assembly) -> list[tuple[str, Scene]]:
-    """The loop and one exploded view per joint of today's parts: ``assembly_loop.png`` and
-    ``assembly_joint_<j>.png`` (joint j: link j's pin into link j+1's bore)."""
+    """The loop, where each joint is and each joint pulled apart, for today's parts:
+    ``assembly_loop.png``, ``assembly_where_<j>.png`` and ``assembly_joint_<j>.png`` (joint j:
+    link j's pin into link j+1's bore)."""
     meshes = [part_trimesh(p) for p in asm.parts]
     colors = [tuple(int(c) for c in LINK_COLORS[p.link]) for p in asm.parts]
     joints = [Joint(j, z.origin, z.w, z.s0, z.s1, z.radius, piece=j)
               for j, z in enumerate(asm.zones)]
-    out = [("assembly_loop.png", loop_scene(
-        [Piece(f"link {p.link}", m, c) for p, m, c in zip(asm.parts, meshes, colors,
-                                                            strict=True)], joints))]
+    links = [Piece(f"link {p.link}", m, c) for p, m, c in zip(asm.parts, meshes, colors,
+                                                            strict=True)]
+    loop = loop_scene(links, joints)
+    out = [("assembly_loop.png", loop)]
+    out += [(f"assembly_where_{j}.png", locator_scene(links, joints[j], (j, (j + 1) % len(links)),
+                                                      loop.view)) for j in range(len(joints))]
     spec, n = asm.spec, asm.spec.segments
     for j, z in enumerate(asm.zones):
         k = (j + 1) % len(asm.parts)
