@@ -46,7 +46,7 @@ def test_front_face_hides_back_face_with_the_front_shade():
     """Looking down z at a cube, the centre shows the top face (normal towards the eye):
     ambient + key light on the normal + full fill, not the bottom face (ambient only)."""
     img = pixels([Item(box(), RED, edges=False)])
-    key = np.array([-0.45, 0.65, 0.62])
+    key = np.array(render.KEY_LIGHT)  # camera frame (right, up, towards the eye)
     shade = render.AMBIENT + render.KEY * key[2] / np.linalg.norm(key) + render.FILL
     centre = img[img.shape[0] // 2, img.shape[1] // 2]
     np.testing.assert_allclose(centre, np.round(np.array(RED) * shade), atol=1)
@@ -233,6 +233,7 @@ def test_coverage_names_the_item_seen():
 
 @pytest.mark.parametrize("make", [
     lambda: Item(box(), (300, 0, 0)),
+    lambda: Item("mesh", RED),
     lambda: Item(box(), RED, alpha=0.0),
     lambda: Label("", (0, 0, 0)),
     lambda: Label("x", (0, np.nan, 0)),

@@ -5,12 +5,13 @@ building parts: :class:`Piece` (a rigid solid with a name and colour, mm) and :c
 (a numbered axis with the axial range and radius of its hardware).
 
 * :func:`loop_scene`: the assembled loop, every piece named (leader in its colour) and every
-  joint numbered; the view is the candidate (azimuth every 30 deg, elevation 20 / 40 / 65 deg,
-  world z up) that sees the most joints, then shows every piece best.
+  joint numbered; the view is the candidate (azimuth every 30 deg, elevation 20 / 50 deg,
+  world z up) that sees the most joints, then shows every piece best with the joints spread
+  apart (room for their labels).
 * :func:`exploded_scene`: one joint pulled apart along its axis: groups of pieces shifted by
   their own offsets (mm along the axis), the axis dashed, an arrow per moved group back to
   its place, framed on the joint. The axis is drawn left to right (positive offsets to the
-  right); the eye turns about it (every 30 deg, tilted 15 deg either way along it) to see the
+  right); the eye turns about it (every 45 deg, tilted 15 deg either way along it) to see the
   pieces flagged ``focus`` (pin, bore) best, preferring views from above.
 * :func:`locator_scene`: where one joint is: its two pieces in colour, the rest faint.
 * :func:`assembly_scenes`: all three for today's :class:`parts.Assembly` (pin of link i, bore
@@ -98,18 +99,21 @@ def loop_scene(pieces: Sequence[Piece], joints: Sequence[Joint], size=SIZE) -> S
         raise FabricationError("a loop picture needs pieces", "bad-parameters")
     items = tuple(Item(p.mesh, p.color) for p in pieces)
     best, eye = -np.inf, None
-    for el in (20.0, 40.0, 65.0):
+    verts = np.concatenate([it.mesh.vertices for it in items])
+    points = np.array([j.point for j in joints], float).reshape(-1, 3)
+    for el in (20.0, 50.0):
         for az in range(0, 360, 30):
             probe = View(size=PROBE, azimuth_deg=az, elevation_deg=el, supersample=1)
-            cam = render.camera(probe, np.concatenate([it.mesh.vertices for it in items]), 1)
             who = render.coverage(items, probe)
-            seen = 0
-            for j in joints:  # the joint's own piece is what one sees at its point
-                x, y, _ = cam.project(j.point)
-                r, c = int(np.clip(y, 0, PROBE[1] - 1)), int(np.clip(x, 0, PROBE[0] - 1))
-                seen += int(who[r, c] == j.piece or who[r, c] == -1)
+            xy = render.camera(probe, verts, 1).project(points)[:, :2]
+            col = np.clip(xy[:, 0].astype(int), 0, PROBE[0] - 1)
+            row = np.clip(xy[:, 1].astype(int), 0, PROBE[1] - 1)
+            # a joint is seen when its own piece (or nothing) is what shows at its point
+            seen = (who[row, col] == [j.piece for j in joints]) | (who[row, col] == -1)
+            gaps = np.linalg.norm(xy[:, None] - xy[None], axis=-1) + np.eye(len(xy)) * 1e9
+            spread = gaps.min(initial=np.hypot(*PROBE)) / np.hypot(*PROBE)
             counts = np.bincount(who[who >= 0].ravel(), minlength=len(items))
-            score = seen + float(np.log1p(counts).mean())
+            score = seen.sum() + float(np.log1p(counts).mean()) + 10.0 * spread
             if score > best:
                 best, eye = score, (az, el)
     view = View(size=size, azimuth_deg=eye[0], elevation_deg=eye[1], margin=0.1)
@@ -163,7 +167,7 @@ def exploded_scene(groups: Sequence[tuple[Sequence[Piece], float]], joint: Joint
     v = np.cross(w, u)
     best, pick = -np.inf, None
     for tilt in (15.0, -15.0):
-        for phi in np.radians(np.arange(0, 360, 30)):
+        for phi in np.radians(np.arange(0, 360, 45)):
             eye = np.cos(np.radians(tilt)) * (np.cos(phi) * u + np.sin(phi) * v) \
                 - np.sin(np.radians(tilt)) * w
             up = np.cross(eye, w)

@@ -35,6 +35,8 @@ RGB = tuple[int, int, int]
 #: Shading: ambient, key light (Lambert) and head-light fill weights (sum 1: a face turned
 #: to both lights shows its full colour).
 AMBIENT, KEY, FILL = 0.5, 0.38, 0.12
+#: Direction of the key light in the camera frame (right, up, towards the eye).
+KEY_LIGHT = (-0.45, 0.65, 0.62)
 #: Outline colour as a fraction of the item's colour.
 EDGE_SHADE = 0.25
 
@@ -57,7 +59,8 @@ def _color(c, name: str) -> RGB:
 @dataclass(frozen=True)
 class Item:
     """A closed triangle mesh drawn in ``color`` (RGB 0-255) with opacity ``alpha`` in
-    (0, 1]; ``edges``: outline its silhouette and creases."""
+    (0, 1]; ``edges``: outline its silhouette and creases (found through shared vertices:
+    an unmerged mesh would be outlined along every triangle)."""
 
     mesh: trimesh.Trimesh
     color: RGB
@@ -65,6 +68,10 @@ class Item:
     edges: bool = True
 
     def __post_init__(self):
+        if not isinstance(self.mesh, trimesh.Trimesh) or \
+                not np.all(np.isfinite(self.mesh.vertices)):
+            raise FabricationError("Item.mesh must be a trimesh.Trimesh with finite vertices",
+                                   "bad-parameters")
         object.__setattr__(self, "color", _color(self.color, "Item.color"))
         if not 0.0 < self.alpha <= 1.0:
             raise FabricationError(f"Item.alpha must be in (0, 1], got {self.alpha}",
@@ -234,7 +241,7 @@ def _layer(item: Item, cam: Camera, crease_cos: float) -> _Layer:
     n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
     eye = cam.basis[2]
     front = n @ eye > 0.0
-    key = -0.45 * cam.basis[0] + 0.65 * cam.basis[1] + 0.62 * eye  # above-left of the eye
+    key = np.asarray(KEY_LIGHT) @ cam.basis  # above-left of the eye
     key /= np.linalg.norm(key)
     shade = AMBIENT + KEY * np.clip(n @ key, 0.0, 1.0) + FILL * np.clip(n @ eye, 0.0, 1.0)
     rgb = np.asarray(item.color, float) * shade[:, None]
