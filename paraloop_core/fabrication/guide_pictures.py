@@ -1,0 +1,271 @@
+"""What the assembly guide's pictures show: pieces, colours, labels, arrows and the camera.
+
+Composition only (drawing is :mod:`render`), over plain inputs so it outlives any one way of
+building parts: :class:`Piece` (a rigid solid with a name and colour, mm) and :class:`Joint`
+(a numbered axis with the axial range and radius of its hardware).
+
+* :func:`loop_scene`: the assembled loop, every piece named (leader in its colour) and every
+  joint numbered; the view is the candidate (azimuth every 30 deg, elevation 20 / 50 deg,
+  world z up) that sees the most joints, then shows every piece best with the joints spread
+  apart (room for their labels).
+* :func:`exploded_scene`: one joint pulled apart along its axis: groups of pieces shifted by
+  their own offsets (mm along the axis), the axis dashed, an arrow per moved group back to
+  its place, framed on the joint. The axis is drawn left to right (positive offsets to the
+  right); the eye turns about it (every 45 deg, tilted 15 deg either way along it) to see the
+  pieces flagged ``focus`` (pin, bore) best, preferring views from above.
+* :func:`locator_scene`: where one joint is: its two pieces in colour, the rest faint.
+* :func:`assembly_scenes`: all three for today's :class:`parts.Assembly` (pin of link i, bore
+  of link i+1 highlighted).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import trimesh
+
+from paraloop_core.errors import FabricationError
+from paraloop_core.fabrication import parts, render
+from paraloop_core.fabrication.export import LINK_COLORS, part_trimesh
+from paraloop_core.fabrication.render import RGB, Arrow3, Item, Label, Line3, View
+
+#: Colours of the joint hardware in the pictures (apart from every link colour).
+PIN_COLOR: RGB = (250, 205, 30)
+BORE_COLOR: RGB = (40, 205, 220)
+#: The bore itself, seen through its boss drawn translucent in BORE_COLOR.
+BORE_DARK: RGB = (0, 95, 120)
+JOINT_COLOR: RGB = (30, 30, 30)
+ARROW_COLOR: RGB = (215, 30, 30)
+#: Pieces not involved in a step.
+FAINT: RGB = (190, 190, 190)
+#: Size (px) of the pictures and of the quick renders that choose their views.
+SIZE = (1000, 750)
+PROBE = (200, 150)
+
+
+@dataclass(frozen=True)
+class Piece:
+    """A rigid solid: ``mesh`` (mm, assembled pose), ``color``, opacity ``alpha``; labelled
+    ``name`` (empty: no label); ``focus``: an exploded view is chosen to show it."""
+
+    name: str
+    mesh: trimesh.Trimesh
+    color: RGB
+    focus: bool = False
+    alpha: float = 1.0
+
+
+@dataclass(frozen=True)
+class Joint:
+    """Joint ``number``: axis through ``point`` along unit ``axis`` (mm); its hardware spans
+    ``point + s axis`` for ``s`` in ``[s0, s1]`` within ``radius``; ``piece``: index of a piece
+    holding it (its number's label points there)."""
+
+    number: int
+    point: np.ndarray
+    axis: np.ndarray
+    s0: float
+    s1: float
+    radius: float
+    piece: int = 0
+
+
+@dataclass(frozen=True)
+class Scene:
+    """Everything one picture shows; :meth:`png` renders it."""
+
+    items: tuple[Item, ...]
+    labels: tuple[Label, ...]
+    lines: tuple[Line3 | Arrow3, ...]
+    view: View
+
+    def png(self) -> bytes:
+        return render.render(self.items, self.labels, self.lines, self.view)
+
+
+def _seen_score(items: Sequence[Item], view: View, targets: Sequence[int]) -> float:
+    """How well ``view`` shows ``targets``: log(1 + pixels where an item is seen), the least
+    of the targets' plus a fifth of the mean over all items."""
+    who = render.coverage(items, view)
+    seen = np.log1p(np.bincount(who[who >= 0].ravel(), minlength=len(items)))
+    return float(seen[list(targets)].min(initial=0.0) + 0.2 * seen.mean())
+
+
+def loop_scene(pieces: Sequence[Piece], joints: Sequence[Joint], size=SIZE) -> Scene:
+    """The assembled loop, pieces named and joints numbered (module docstring)."""
+    if not pieces:
+        raise FabricationError("a loop picture needs pieces", "bad-parameters")
+    items = tuple(Item(p.mesh, p.color) for p in pieces)
+    best, eye = -np.inf, None
+    verts = np.concatenate([it.mesh.vertices for it in items])
+    points = np.array([j.point for j in joints], float).reshape(-1, 3)
+    for el in (20.0, 50.0):
+        for az in range(0, 360, 30):
+            probe = View(size=PROBE, azimuth_deg=az, elevation_deg=el, supersample=1)
+            who = render.coverage(items, probe)
+            xy = render.camera(probe, verts, 1).project(points)[:, :2]
+            col = np.clip(xy[:, 0].astype(int), 0, PROBE[0] - 1)
+            row = np.clip(xy[:, 1].astype(int), 0, PROBE[1] - 1)
+            # a joint is seen when its own piece (or nothing) is what shows at its point
+            seen = (who[row, col] == [j.piece for j in joints]) | (who[row, col] == -1)
+            gaps = np.linalg.norm(xy[:, None] - xy[None], axis=-1) + np.eye(len(xy)) * 1e9
+            spread = gaps.min(initial=np.hypot(*PROBE)) / np.hypot(*PROBE)
+            counts = np.bincount(who[who >= 0].ravel(), minlength=len(items))
+            score = seen.sum() + float(np.log1p(counts).mean()) + 10.0 * spread
+            if score > best:
+                best, eye = score, (az, el)
+    view = View(size=size, azimuth_deg=eye[0], elevation_deg=eye[1], margin=0.1)
+    labels = [Label(p.name, p.mesh.centroid, p.color, item=k)
+              for k, p in enumerate(pieces) if p.name]
+    labels += [Label(f"joint {j.number}", j.point, JOINT_COLOR, item=j.piece) for j in joints]
+    return Scene(items, tuple(labels), (), view)
+
+
+def locator_scene(pieces: Sequence[Piece], joint: Joint, shown: Sequence[int],
+                  view: View) -> Scene:
+    """Where joint ``joint`` is in the loop: the pieces ``shown`` in colour and named, the
+    others faint grey, the joint numbered; seen as ``view`` (e.g. the loop picture's)."""
+    items, labels = [], []
+    for k, p in enumerate(pieces):
+        if k in shown:
+            items.append(Item(p.mesh, p.color))
+            if p.name:
+                labels.append(Label(p.name, p.mesh.centroid, p.color, item=k))
+        else:
+            items.append(Item(p.mesh, FAINT, alpha=0.3, edges=False))
+    labels.append(Label(f"joint {joint.number}", joint.point, JOINT_COLOR, item=joint.piece))
+    return Scene(tuple(items), tuple(labels), (), view)
+
+
+def exploded_scene(groups: Sequence[tuple[Sequence[Piece], float]], joint: Joint,
+                   size: tuple[int, int] | None = None) -> Scene:
+    """Joint ``joint`` pulled apart: each group of pieces shifted by its offset (mm along
+    the axis), framed on the joint (module docstring); ``size`` (px, None: :data:`SIZE`'s
+    width and the height the frame needs, at least 64 % of SIZE's)."""
+    w = np.asarray(joint.axis, float)
+    w = w / np.linalg.norm(w)
+    at = np.asarray(joint.point, float)
+    offsets = [float(off) for _, off in groups]
+    lo, hi = joint.s0 + min(offsets), joint.s1 + max(offsets)
+    margin = 2.5 * joint.radius
+    items, labels, targets = [], [], []
+    for pieces, offset in groups:
+        for p in pieces:
+            mesh = p.mesh.copy()
+            mesh.apply_translation(offset * w)
+            if p.focus:
+                targets.append(len(items))
+            if p.name:
+                labels.append(Label(p.name, _near(mesh.vertices, at, w, lo - margin,
+                                                  hi + margin, 2 * margin),
+                                    p.color, item=len(items)))
+            items.append(Item(mesh, p.color, p.alpha))
+    u = np.cross(w, [1.0, 0.0, 0.0] if abs(w[0]) < 0.9 else [0.0, 1.0, 0.0])
+    u /= np.linalg.norm(u)
+    v = np.cross(w, u)
+    best, pick = -np.inf, None
+    for tilt in (15.0, -15.0):
+        for phi in np.radians(np.arange(0, 360, 45)):
+            eye = np.cos(np.radians(tilt)) * (np.cos(phi) * u + np.sin(phi) * v) \
+                - np.sin(np.radians(tilt)) * w
+            up = np.cross(eye, w)
+            ring = _frame(joint.point, w, np.cross(w, eye), lo - margin, hi + margin, margin)
+            probe = View(size=PROBE, direction=tuple(eye), up=tuple(up), fit=ring, supersample=1)
+            score = _seen_score(items, probe, targets) + 0.3 * eye[2]
+            if score > best:
+                best, pick = score, (eye, up, ring)
+    eye, up, ring = pick
+    if size is None:  # as wide as the default, as high as the joint's frame needs
+        size = (SIZE[0], int(np.clip(SIZE[0] * 2.5 * margin / (hi - lo + 2 * margin),
+                                     0.64 * SIZE[1], SIZE[1])))
+    view = View(size=size, direction=tuple(eye), up=tuple(up), fit=ring, margin=0.06)
+    side = np.cross(w, eye)
+    side /= np.linalg.norm(side)
+    lines: list[Line3 | Arrow3] = [Line3(at + (lo - margin) * w, at + (hi + margin) * w,
+                                         JOINT_COLOR, dashed=True, width=2.0)]
+    probe = View(size=PROBE, direction=tuple(eye), up=tuple(up), fit=ring, supersample=1)
+    who = render.coverage(items, probe)
+    cam = render.camera(probe, np.concatenate([it.mesh.vertices for it in items]), 1)
+    for off in offsets:
+        if off == 0.0:
+            continue
+        arrows = []
+        for sign in (1.0, -1.0):  # beside the axis, on the side with less in the way
+            base = at + sign * side * 1.8 * joint.radius + (joint.s0 if off > 0 else joint.s1) * w
+            arrows.append(Arrow3(base + off * w, base + 0.25 * off * w, ARROW_COLOR))
+        lines.append(min(arrows, key=lambda a: _covered(who, cam, a)))
+    labels.append(Label(f"axis of joint {joint.number}", at + (lo - 0.9 * margin) * w,
+                        JOINT_COLOR))
+    return Scene(tuple(items), tuple(labels), tuple(lines), view)
+
+
+def _covered(who: np.ndarray, cam: render.Camera, arrow: Arrow3) -> int:
+    """Pixels of ``who`` (a coverage) under the arrow's shaft, 20 samples."""
+    p = cam.project(np.linspace(arrow.tail, arrow.head, 20))
+    col = np.clip(p[:, 0].astype(int), 0, who.shape[1] - 1)
+    row = np.clip(p[:, 1].astype(int), 0, who.shape[0] - 1)
+    return int((who[row, col] >= 0).sum())
+
+
+def _near(v: np.ndarray, at: np.ndarray, w: np.ndarray, lo: float, hi: float,
+          reach: float) -> np.ndarray:
+    """Mean of the vertices ``v`` within ``reach`` of the axis ``at + s w``, ``s`` in
+    ``[lo, hi]`` (what a close-up of the joint shows of a piece); all of them if none is."""
+    s = (v - at) @ w
+    radial = np.linalg.norm(v - at - s[:, None] * w, axis=1)
+    near = (s >= lo) & (s <= hi) & (radial <= reach)
+    return v[near].mean(0) if near.any() else v.mean(0)
+
+
+def _frame(at: np.ndarray, w: np.ndarray, side: np.ndarray, lo: float, hi: float,
+           half: float) -> np.ndarray:
+    """Points ``(4, 3)`` spanning the axial range ``[lo, hi]`` and ``half`` either side."""
+    side = side / max(float(np.linalg.norm(side)), 1e-12)
+    return np.array([at + s * w + k * half * side for s in (lo, hi) for k in (-1.0, 1.0)])
+
+
+def assembly_scenes(asm: parts.Assembly) -> list[tuple[str, Scene]]:
+    """The loop, where each joint is and each joint pulled apart, for today's parts:
+    ``assembly_loop.png``, ``assembly_where_<j>.png`` and ``assembly_joint_<j>.png`` (joint j:
+    link j's pin into link j+1's bore)."""
+    meshes = [part_trimesh(p) for p in asm.parts]
+    colors = [tuple(int(c) for c in LINK_COLORS[p.link]) for p in asm.parts]
+    joints = [Joint(j, z.origin, z.w, z.s0, z.s1, z.radius, piece=j)
+              for j, z in enumerate(asm.zones)]
+    links = [Piece(f"link {p.link}", m, c) for p, m, c in zip(asm.parts, meshes, colors,
+                                                            strict=True)]
+    loop = loop_scene(links, joints)
+    out = [("assembly_loop.png", loop)]
+    out += [(f"assembly_where_{j}.png", locator_scene(links, joints[j], (j, (j + 1) % len(links)),
+                                                      loop.view)) for j in range(len(joints))]
+    spec, n = asm.spec, asm.spec.segments
+    for j, z in enumerate(asm.zones):
+        k = (j + 1) % len(asm.parts)
+        pin_zone = parts.cylinder(z.at(z.split - z.gap / 2), z.at(z.s1 + 1.0),
+                                  spec.pin_radius_mm + z.gap / 2, n)
+        boss_zone = parts.cylinder(z.at(z.split), z.at(z.s1 + 1.0), z.radius + z.eps, n)
+        a, b = asm.parts[j].manifold, asm.parts[k].manifold
+        # the bore: the empty space about the axis inside link k's boss (shown through it)
+        hole = parts.cylinder(z.at(z.split + z.gap / 2 + 0.01), z.at(z.s1),
+                              spec.pin_radius_mm + z.gap - 0.01, n) - b
+        pull = 1.5 * (z.s1 - z.split) + 2.0 * z.radius
+        groups = [([Piece(f"link {j}", _mesh(a - pin_zone), colors[j]),
+                    Piece(f"pin of link {j}", _mesh(a ^ pin_zone), PIN_COLOR, focus=True)], 0.0),
+                  ([Piece(f"link {k}", _mesh(b - boss_zone), colors[k]),
+                    Piece("", _mesh(b ^ boss_zone), BORE_COLOR, alpha=0.35),
+                    Piece(f"bore of link {k}", _mesh(hole), BORE_DARK, focus=True)], pull)]
+        out.append((f"assembly_joint_{j}.png", exploded_scene(groups, joints[j])))
+    return out
+
+
+def _mesh(man) -> trimesh.Trimesh:
+    m = man.to_mesh()
+    return trimesh.Trimesh(np.asarray(m.vert_properties[:, :3], float),
+                           np.asarray(m.tri_verts, np.int64), process=True)
+
+
+def assembly_pictures(asm: parts.Assembly) -> list[tuple[str, bytes]]:
+    """:func:`assembly_scenes` rendered: ``(file name, PNG bytes)``."""
+    return [(name, scene.png()) for name, scene in assembly_scenes(asm)]
