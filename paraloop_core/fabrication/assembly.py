@@ -19,7 +19,7 @@ from paraloop_core.fabrication.parts import Part
 from paraloop_core.fabrication.profiles import Printer
 
 #: Polygon segments of the coarse trial parts that measure a print flat's support.
-TRIAL_SEGMENTS = 12
+TRIAL_SEGMENTS = 8
 #: Extra polygon segments tried when a boolean pinches two vertices onto one position.
 RETESSELLATE = (0, 2, 6)
 
@@ -142,14 +142,21 @@ def assemble(plan: sizing.Plan, points: np.ndarray, joint_factors: np.ndarray,
 
 
 def relay(asm: Assembly, j: int, joint: Joint) -> Assembly:
-    """``asm`` with joint ``j`` laid out anew (``joint``): its two links rebuilt (their print
-    flats chosen again: the new bores need their walls), its pieces and hardware replaced."""
+    """``asm`` with joint ``j`` laid out anew (``joint``): its two links rebuilt (on their
+    print flats, chosen again where the new bores would break the walls there), its pieces and
+    hardware replaced."""
     layouts = tuple(joint if i == j else x for i, x in enumerate(asm.joints))
     new_parts = list(asm.parts[:6])
     slack = asm.slack.copy()
     for i in (j, (j + 1) % 6):
+        # the link's print flat stays where it still leaves every bore its wall
+        keep = asm.parts[i].down
+        r = float(asm.plan.radii[i])
+        flat = float(np.max(asm.bars[i].reshape(-1, 3) @ keep)) + r * sizing.APOTHEM
+        sides = [(layouts[i], False), (layouts[(i - 1) % 6], True)]
+        down = keep if layout.wall_slack(keep, flat, sides, asm.printer) >= 0 else None
         new_parts[i], slack[i] = _link(asm.plan, i, asm.bars[i], layouts, asm.printer,
-                                       asm.extras)
+                                       asm.extras, down)
         parts.check_solid(new_parts[i].manifold, new_parts[i].name)
     others = [p for p in asm.parts[6:] if not (p.role in ("pin", "cap") and p.link == j)]
     pieces = [p for p in parts.piece_parts((joint,))]

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from paraloop_core.fabrication import profiles
+from paraloop_core.fabrication import guide_html, guide_pictures, profiles
 
 
 def _joint_text(j, kind: str, first: int) -> str:
@@ -116,11 +116,34 @@ def markdown(title: str, text: dict, bom: list[dict], parts: list[dict], setting
 
 def pages(printed, meshes: dict, placements: list, opts, report: dict
           ) -> list[tuple[str, bytes]]:
-    """``assembly.md`` (and its pictures) of a printed loop (:mod:`printable`)."""
+    """``assembly.md``, ``assembly.html`` and their pictures (:mod:`guide_pictures`) of a
+    printed loop (:mod:`printable`)."""
     asm = printed.assembly
-    pictures: dict[str, str] = {}
+    shots = guide_pictures.assembly_pictures(asm)
+    names = {n: n for n, _ in shots}
+    pictures = {"loop": names.get("guide_loop.png"), "base": names.get("guide_base.png")}
+    pictures.update({f"joint_{j.index}": names.get(f"guide_joint_{j.index}.png")
+                     for j in asm.joints})
     text = guide_text(asm, report, opts.material, pictures)
     title = "Assembly guide: a paradoxical 6R loop that turns inside out"
-    md = markdown(title, text, report["bill_of_materials"], report["parts"],
-                  print_settings(opts.printer, opts.material))
-    return [("assembly.md", md)]
+    settings = print_settings(opts.printer, opts.material)
+    md = markdown(title, text, report["bill_of_materials"], report["parts"], settings)
+    layout = {p["name"]: p for p in report["print_layout"]["parts"]}
+    page = guide_html.Guide(
+        title=title, summary="\n\n".join(text["summary"]),
+        warnings=tuple(report["warnings"]),
+        overview=(guide_html.Picture("guide_loop.png", "the assembled loop, links named, "
+                                     "joints numbered"),),
+        bom=tuple(guide_html.BomLine(r["item"], str(r["quantity"]), r["for"])
+                  for r in report["bill_of_materials"]),
+        profiles=(guide_html.PrintProfile(f"{opts.printer.name}, {opts.material.name}", tuple(
+            guide_html.Fact(*line.split(": ", 1)) if ": " in line else
+            guide_html.Fact("note", line) for line in settings)),),
+        parts=tuple(guide_html.PartRow(
+            f"{p['name']}.stl", str(layout[p["name"]]["plate"]),
+            "as laid in the 3MF", layout[p["name"]]["support_mm2"],
+            f"{p['mass_g']:.0f} g") for p in report["parts"]),
+        steps=tuple(guide_html.Step(
+            f"Step {k + 1}", step, () if not pic else (guide_html.Picture(pic, step[:80]),))
+            for k, (step, pic) in enumerate(text["steps"])))
+    return [*shots, ("assembly.md", md), ("assembly.html", guide_html.guide_html(page))]

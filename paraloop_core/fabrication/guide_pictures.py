@@ -14,8 +14,7 @@ building parts: :class:`Piece` (a rigid solid with a name and colour, mm) and :c
   right); the eye turns about it (every 45 deg, tilted 15 deg either way along it) to see the
   pieces flagged ``focus`` (pin, bore) best, preferring views from above.
 * :func:`locator_scene`: where one joint is: its two pieces in colour, the rest faint.
-* :func:`assembly_scenes`: all three for today's :class:`parts.Assembly` (pin of link i, bore
-  of link i+1 highlighted).
+* :func:`assembly_scenes`: the guide's pictures of a printed :class:`assembly.Assembly`.
 """
 
 from __future__ import annotations
@@ -27,8 +26,10 @@ import numpy as np
 import trimesh
 
 from paraloop_core.errors import FabricationError
-from paraloop_core.fabrication import parts, render
-from paraloop_core.fabrication.export import LINK_COLORS, part_trimesh
+from paraloop_core.fabrication import render
+from paraloop_core.fabrication.assembly import Assembly
+from paraloop_core.fabrication.check import part_trimesh
+from paraloop_core.fabrication.export import LINK_COLORS
 from paraloop_core.fabrication.render import RGB, Arrow3, Item, Label, Line3, View
 
 #: Colours of the joint hardware in the pictures (apart from every link colour).
@@ -37,11 +38,13 @@ BORE_COLOR: RGB = (40, 205, 220)
 #: The bore itself, seen through its boss drawn translucent in BORE_COLOR.
 BORE_DARK: RGB = (0, 95, 120)
 JOINT_COLOR: RGB = (30, 30, 30)
+NUT_COLOR: RGB = (240, 120, 20)
+STEEL: RGB = (170, 175, 185)
 ARROW_COLOR: RGB = (215, 30, 30)
 #: Pieces not involved in a step.
 FAINT: RGB = (190, 190, 190)
 #: Size (px) of the pictures and of the quick renders that choose their views.
-SIZE = (1000, 750)
+SIZE = (900, 675)
 PROBE = (200, 150)
 
 
@@ -70,6 +73,8 @@ class Joint:
     s1: float
     radius: float
     piece: int = 0
+    #: the axis's label in an exploded view (default "axis of joint <number>")
+    name: str = ""
 
 
 @dataclass(frozen=True)
@@ -196,7 +201,8 @@ def exploded_scene(groups: Sequence[tuple[Sequence[Piece], float]], joint: Joint
             base = at + sign * side * 1.8 * joint.radius + (joint.s0 if off > 0 else joint.s1) * w
             arrows.append(Arrow3(base + off * w, base + 0.25 * off * w, ARROW_COLOR))
         lines.append(min(arrows, key=lambda a: _covered(who, cam, a)))
-    labels.append(Label(f"axis of joint {joint.number}", at + (lo - 0.9 * margin) * w,
+    labels.append(Label(joint.name or f"axis of joint {joint.number}",
+                        at + (lo - 0.9 * margin) * w,
                         JOINT_COLOR))
     return Scene(tuple(items), tuple(labels), tuple(lines), view)
 
@@ -226,46 +232,93 @@ def _frame(at: np.ndarray, w: np.ndarray, side: np.ndarray, lo: float, hi: float
     return np.array([at + s * w + k * half * side for s in (lo, hi) for k in (-1.0, 1.0)])
 
 
-def assembly_scenes(asm: parts.Assembly) -> list[tuple[str, Scene]]:
-    """The loop, where each joint is and each joint pulled apart, for today's parts:
-    ``assembly_loop.png``, ``assembly_where_<j>.png`` and ``assembly_joint_<j>.png`` (joint j:
-    link j's pin into link j+1's bore)."""
-    meshes = [part_trimesh(p) for p in asm.parts]
-    colors = [tuple(int(c) for c in LINK_COLORS[p.link]) for p in asm.parts]
-    joints = [Joint(j, z.origin, z.w, z.s0, z.s1, z.radius, piece=j)
-              for j, z in enumerate(asm.zones)]
-    links = [Piece(f"link {p.link}", m, c) for p, m, c in zip(asm.parts, meshes, colors,
-                                                            strict=True)]
-    loop = loop_scene(links, joints)
-    out = [("assembly_loop.png", loop)]
-    out += [(f"assembly_where_{j}.png", locator_scene(links, joints[j], (j, (j + 1) % len(links)),
-                                                      loop.view)) for j in range(len(joints))]
-    spec, n = asm.spec, asm.spec.segments
-    for j, z in enumerate(asm.zones):
-        k = (j + 1) % len(asm.parts)
-        pin_zone = parts.cylinder(z.at(z.split - z.gap / 2), z.at(z.s1 + 1.0),
-                                  spec.pin_radius_mm + z.gap / 2, n)
-        boss_zone = parts.cylinder(z.at(z.split), z.at(z.s1 + 1.0), z.radius + z.eps, n)
-        a, b = asm.parts[j].manifold, asm.parts[k].manifold
-        # the bore: the empty space about the axis inside link k's boss (shown through it)
-        hole = parts.cylinder(z.at(z.split + z.gap / 2 + 0.01), z.at(z.s1),
-                              spec.pin_radius_mm + z.gap - 0.01, n) - b
-        pull = 1.5 * (z.s1 - z.split) + 2.0 * z.radius
-        groups = [([Piece(f"link {j}", _mesh(a - pin_zone), colors[j]),
-                    Piece(f"pin of link {j}", _mesh(a ^ pin_zone), PIN_COLOR, focus=True)], 0.0),
-                  ([Piece(f"link {k}", _mesh(b - boss_zone), colors[k]),
-                    Piece("", _mesh(b ^ boss_zone), BORE_COLOR, alpha=0.35),
-                    Piece(f"bore of link {k}", _mesh(hole), BORE_DARK, focus=True)], pull)]
-        out.append((f"assembly_joint_{j}.png", exploded_scene(groups, joints[j])))
+def _tm(solid) -> trimesh.Trimesh:
+    return part_trimesh(solid)
+
+
+def _rgb(c) -> RGB:
+    return tuple(int(v) for v in c)
+
+
+def assembly_scenes(asm: Assembly) -> list[tuple[str, Scene]]:
+    """The pictures of the guide for a printed :class:`assembly.Assembly`:
+    ``guide_loop.png`` (the assembled loop on its base, links named, joints numbered),
+    ``guide_joint_<j>.png`` (joint j pulled apart: the screw or pin, link j, the thrust washer,
+    link j+1, the nut or cap; axle and nut highlighted, each boss see-through so its bore and
+    recess show) and ``guide_base.png`` (the rod and the plate)."""
+    by_link = {i: [p for p in asm.parts if p.link == i and p.role == "link"] for i in range(6)}
+    # pictures of the standing sculpture: everything in the world of its base
+    world = np.eye(4) if asm.base is None else asm.base.world_from_home()
+    meshes = {p.name: _tm(p.manifold).apply_transform(world) for p in asm.parts}
+    pieces = [Piece(f"link {i}", meshes[by_link[i][0].name], _rgb(LINK_COLORS[i]))
+              for i in range(6)]
+    for p in asm.parts:
+        if p.role == "base":
+            pieces.append(Piece("base plate", meshes[p.name], _rgb(LINK_COLORS[6])))
+    for h in asm.hardware:
+        if h.role.endswith(" rod"):
+            pieces.append(Piece("rod", _tm(h.solid).apply_transform(world), STEEL))
+    rot = world[:3, :3]
+    joints = [Joint(j.index, rot @ j.at(j.split) + world[:3, 3], rot @ j.w,
+                    j.extent[0] - j.split, j.extent[1] - j.split, j.reach, piece=j.index)
+              for j in asm.joints]
+    out = [("guide_loop.png", loop_scene(pieces, joints))]
+    for jt, pic in zip(asm.joints, joints, strict=True):
+        out.append((f"guide_joint_{jt.index}.png",
+                    exploded_scene(_groups(asm, jt, meshes, world), pic)))
+    if asm.base is not None:
+        b = asm.base
+        plate = next(p for p in asm.parts if p.role == "base")
+        rod = next(h for h in asm.hardware if h.role.endswith(" rod"))
+        d = (b.bottom - b.top) / np.linalg.norm(b.bottom - b.top)
+        length = float(np.linalg.norm(b.bottom - b.top))
+        pull = 0.25 * length
+        groups = [([Piece("rod", _tm(rod.solid).apply_transform(world), PIN_COLOR,
+                          focus=True)], 0.0),
+                  ([Piece("base plate: glue the rod in its socket", meshes[plate.name],
+                          _rgb(LINK_COLORS[6]), focus=True)], pull)]
+        foot = rot @ (b.bottom - 0.3 * length * d) + world[:3, 3]
+        out.append(("guide_base.png", exploded_scene(groups, Joint(
+            0, foot, rot @ d, -0.7 * length, 0.3 * length, b.radius * 0.5,
+            name="the rod's axis"))))
     return out
 
 
-def _mesh(man) -> trimesh.Trimesh:
-    m = man.to_mesh()
-    return trimesh.Trimesh(np.asarray(m.vert_properties[:, :3], float),
-                           np.asarray(m.tri_verts, np.int64), process=True)
+def _groups(asm: Assembly, jt, meshes: dict, world: np.ndarray
+            ) -> list[tuple[list[Piece], float]]:
+    """Joint ``jt`` pulled apart along its axis (module docstring), in the ``world``."""
+    a, b = jt.index, (jt.index + 1) % 6
+    pull = 1.2 * (jt.extent[1] - jt.extent[0]) / 2 + jt.reach
+    hard = [h for h in asm.hardware if h.joint == jt.index or
+            (jt.kind == "rod" and h.role.endswith(" rod"))]
+
+    def _tm(solid) -> trimesh.Trimesh:
+        return part_trimesh(solid).apply_transform(world)
+
+    printed = [p for p in asm.parts if p.link == jt.index and p.role in ("pin", "cap")]
+    near = [Piece(f"link {a}", meshes[f"link_{a}"], _rgb(LINK_COLORS[a]), alpha=0.45)]
+    far = [Piece(f"link {b}", meshes[f"link_{b}"], _rgb(LINK_COLORS[b]), alpha=0.45)]
+    groups: list[tuple[list[Piece], float]] = [(near, 0.0), (far, pull)]
+    names = {"screw": "screw", "screw head": "", "lock nut": "lock nut (into its trap)",
+             "thrust washer": "washer"}
+    axle = [h for h in hard if h.role in ("screw", "screw head") or h.role.endswith(" rod")]
+    if axle:
+        groups.insert(0, ([Piece(names.get(h.role, "rod"), _tm(h.solid), PIN_COLOR,
+                                 focus=h.role != "screw head") for h in axle],
+                          -pull if jt.kind != "rod" else 0.0))
+    for h in hard:
+        if h.role == "thrust washer":
+            groups.append(([Piece("washer", _tm(h.solid), STEEL)], 0.5 * pull))
+        if h.role == "lock nut":
+            groups.append(([Piece(names[h.role], _tm(h.solid), NUT_COLOR, focus=True)],
+                           2.0 * pull))
+    for p in printed:
+        off = -pull if p.role == "pin" else 2.0 * pull
+        groups.append(([Piece(p.name.replace("_", " "), meshes[p.name], PIN_COLOR,
+                              focus=True)], off))
+    return groups
 
 
-def assembly_pictures(asm: parts.Assembly) -> list[tuple[str, bytes]]:
+def assembly_pictures(asm: Assembly) -> list[tuple[str, bytes]]:
     """:func:`assembly_scenes` rendered: ``(file name, PNG bytes)``."""
     return [(name, scene.png()) for name, scene in assembly_scenes(asm)]

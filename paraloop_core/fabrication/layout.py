@@ -31,7 +31,7 @@ FIRST_LAYER_MM = 0.3
 #: Turns about the bar tried for its print flat (degrees), and how many of those whose cut
 #: keeps the walls are built (coarsely) to measure their support.
 TURNS_DEG = np.arange(0.0, 360.0, 10.0)
-TRIALS = 6
+TRIALS = 4
 #: Gap between parts on a plate and to the bed's edge (mm).
 GAP_MM = 5.0
 

@@ -130,11 +130,12 @@ def holes(j: Joint, upper: bool, far: float, n: int = SEGMENTS) -> m3d.Manifold:
         else:  # the head's counterbore
             r = f.head_d_mm / 2 + SEAT_MM
             cuts.append(_axis(j, lo - far, j.lower[0] + j.recess[0], r, n))
-    if j.kind in ("rod", "printed-pin"):  # the cap or head sits outside the boss: room for it
-        for p in j.pieces:
+    if j.kind in ("rod", "printed-pin"):  # the cap or head sits outside the boss: room for
+        for p in j.pieces:                  # it, from the boss's face on outwards
             if p.printed and p.role != "pin":
-                cuts.append(_axis(j, p.s0 - EPS_MM - (far if p.s0 < 0 else 0),
-                                  p.s1 + EPS_MM + (far if p.s1 > j.length else 0),
+                beyond = p.s0 >= j.length / 2
+                cuts.append(_axis(j, p.s0 - j.gap if beyond else p.s0 - far,
+                                  p.s1 + far if beyond else p.s1 + j.gap,
                                   p.radius + j.gap + EPS_MM, n))
     return m3d.Manifold.batch_boolean(cuts, m3d.OpType.Add)
 

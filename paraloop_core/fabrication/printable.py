@@ -149,9 +149,8 @@ def choose(candidates: Iterable[Candidate], opts: Options, progress: Progress | 
                      f"{plan.radii.min() * sizing.FLATS:.1f} mm wide or more"
                      + ("" if plan.aims_met else " (under the aims)"))
         sized.append((cand, real, ee, plan))
-        best = max(sized, key=lambda c: _score(c[3]))
-        if plan.aims_met and best[3] is plan and (n >= 1 or opts.size_mm is not None):
-            break  # a good one: the rest would only be as good
+        if sum(c[3].aims_met for c in sized) >= (1 if opts.size_mm is not None else 2):
+            break  # two that meet the aims (the design's loop first): enough to choose from
     if not sized:
         raise FabricationError("no realization of this design can be printed with real "
                                "joints: " + "; ".join(tried), "bad-parameters")

@@ -24,7 +24,7 @@ radii, the joint layouts (``x_j``) and the deflections agree.
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.optimize import linprog
@@ -45,7 +45,9 @@ BOSS_PER_BAR = 1.25
 BAR_CAP = (0.028, 4.5, 8.0)
 #: Gaps the programme keeps, per required gap, when it can (the verification then proves the
 #: required gap with room to spare, not at its limit).
-GAP_MARGIN = 1.25
+GAP_MARGIN = 1.1
+#: Bounds (mm) on each link's predicted deflection tried by :func:`at_scale`, stiffest first.
+DEFLECTION_STEPS = (0.1, 0.15, 0.25, 0.4, 0.6, 0.9)
 #: Sizes (mm) tried below the bed's limit, as factors, when the programme is infeasible there.
 SHRINK = 0.9
 #: Hex bars per corner radius: across flats (width) and the flat's distance from the axis.
@@ -256,41 +258,60 @@ def torque_bound(real, k: float, radius: np.ndarray, boss: np.ndarray, density: 
 
 def at_scale(real, b: Bounds, k: float, printer: Printer, material: Material, kind: str,
              rod: Rod, eps: float, matrix: np.ndarray) -> Plan | None:
-    """The :class:`Plan` at ``k`` mm per unit, or None when no radii meet the rows there:
-    first with the width and length/width aims and gaps :data:`GAP_MARGIN` over the required
-    ones, then with the floors and the required gaps."""
+    """The :class:`Plan` at ``k`` mm per unit, or None when no radii meet the rows there.
+
+    The deflections couple the radii to the gaps (thicker bars bend less but leave less
+    room), so the programme runs with a bound ``delta`` on every link's predicted deflection
+    (:data:`DEFLECTION_STEPS`, stiffest first): each bar at least the radius that keeps it
+    (:func:`stiffness.radius_for`, under the heaviest parts' torque), every gap at least
+    ``max(1 mm, 3 x 2 delta)``; first with the width, length/width and gap aims, then with the
+    floors. The first feasible one is kept."""
     size = k * b.extent
     rcap, bmin = bar_cap(size), min_boss(printer, kind, rod)
     lengths = b.bar_lengths * k
+    heavy = torque_bound(real, k, np.full(6, rcap), np.full(6, BOSS_PER_BAR * rcap),
+                         material.density_g_cm3, matrix)
     for aim in (True, False):
         margin = GAP_MARGIN if aim else 1.0
-        rmin = min_radii(b, k, printer, kind, aim)
-        if np.any(rmin > rcap) and not aim:
-            return None
-        rmin = np.minimum(rmin, rcap)
-        r = rmin
-        boss = np.maximum(bmin, BOSS_PER_BAR * np.maximum(r, np.roll(r, -1)))
-        env, gaps = np.zeros((6, 2)), np.full((6, 6), stiffness.MIN_GAP_MM * margin)
-        for _ in range(6):  # radii, joint layouts and deflections until they agree
-            try:
-                env = np.maximum(env, envelopes(_layouts(b, k, r, boss, kind, printer, eps)))
-            except FabricationError:
-                break
+        floor = min_radii(b, k, printer, kind, aim)
+        for delta in DEFLECTION_STEPS:
+            stiff = stiffness.radius_for(delta, lengths, material.modulus_gpa,
+                                         material.density_g_cm3, heavy)
+            rmin = np.maximum(floor, stiff)
+            if np.any(rmin > rcap):
+                continue
+            gaps = stiffness.required_gaps(np.full(6, delta)) * margin
+            plan = _settle(real, b, k, printer, material, kind, eps, rmin, rcap, bmin, gaps,
+                           matrix)
+            if plan is not None:
+                return replace(plan, aims_met=aim)
+    return None
+
+
+def _settle(real, b: Bounds, k: float, printer: Printer, material: Material, kind: str,
+            eps: float, rmin: np.ndarray, rcap: float, bmin: float, gaps: np.ndarray,
+            matrix: np.ndarray) -> Plan | None:
+    """Radii for fixed ``gaps``, repeated until the joint layouts they imply (how far the
+    bosses and hardware reach past the pins) are those the programme assumed."""
+    r = rmin
+    boss = np.maximum(bmin, BOSS_PER_BAR * np.maximum(r, np.roll(r, -1)))
+    env = np.zeros((6, 2))
+    for _ in range(4):
+        try:
+            env = np.maximum(env, envelopes(_layouts(b, k, r, boss, kind, printer, eps)))
             sol = radii(b, k, rmin, rcap, bmin, env, gaps)
             if sol is None:
-                break
+                return None
             r, boss = sol
+            lay = _layouts(b, k, r, boss, kind, printer, eps)
+        except FabricationError:
+            return None
+        if np.all(envelopes(lay) <= env + 1e-9):
             tq = torque_bound(real, k, r, boss, material.density_g_cm3, matrix)
-            d = stiffness.deflections(lengths, r, np.ones(6), material.modulus_gpa,
+            d = stiffness.deflections(b.bar_lengths * k, r, np.ones(6), material.modulus_gpa,
                                       material.density_g_cm3, tq)
-            need = stiffness.required_gaps(d.total)
-            try:
-                lay = _layouts(b, k, r, boss, kind, printer, eps)
-            except FabricationError:
-                break
-            if np.all(envelopes(lay) <= env + 1e-9) and np.all(need * margin <= gaps + 1e-9):
-                return Plan(size, k, r, boss, lay, d, need, tq, aim)
-            gaps = np.maximum(gaps, need * margin)
+            return Plan(k * b.extent, k, r, boss, lay, d, stiffness.required_gaps(d.total),
+                        tq, True)
     return None
 
 

@@ -72,10 +72,30 @@ def deflections(lengths_mm: np.ndarray, radii_mm: np.ndarray, across_gravity: np
     return Deflection(sag, torque, length, r)
 
 
+def radius_for(deflection_mm: float, lengths_mm: np.ndarray, modulus_gpa: float,
+               density_g_cm3: float, torque_nm: float) -> np.ndarray:
+    """Least hex corner radius ``(6,)`` (mm) whose :func:`deflections` total is at most
+    ``deflection_mm``: ``a / R^2 + b / R^4 = delta`` (sag, torque) solved in ``1 / R^2``."""
+    length = np.asarray(lengths_mm, float)
+    e = modulus_gpa * 1e3
+    i_per = 5.0 * np.sqrt(3.0) / 16.0  # I = i_per R^4
+    a = 5.0 * density_g_cm3 * 1e-6 * G * 1.5 * np.sqrt(3.0) * length**4 / (384.0 * e * i_per)
+    b = abs(torque_nm) * 1e3 * length**2 / (8.0 * e * i_per)
+    d = float(deflection_mm)
+    x = np.where(b > 0, (np.sqrt(a * a + 4.0 * b * d) - a) / (2.0 * np.maximum(b, 1e-300)),
+                 d / np.maximum(a, 1e-300))
+    return 1.0 / np.sqrt(x)
+
+
 def required_gaps(total_mm: np.ndarray) -> np.ndarray:
-    """Gap (mm) ``(6, 6)`` two links must keep: ``max(1 mm, 3 (d_a + d_b))``."""
+    """Gap (mm) ``(6, 6)`` two links must keep: ``max(1 mm, 3 (d_a + d_b))``; two links of
+    one joint only the least gap (they meet at the joint, where neither bends: its hardware
+    holds them, and their bars part from it)."""
     d = np.asarray(total_mm, float)
-    return np.maximum(MIN_GAP_MM, GAP_PER_DEFLECTION * (d[:, None] + d[None, :]))
+    gaps = np.maximum(MIN_GAP_MM, GAP_PER_DEFLECTION * (d[:, None] + d[None, :]))
+    i = np.arange(6)
+    gaps[i, (i + 1) % 6] = gaps[(i + 1) % 6, i] = MIN_GAP_MM
+    return gaps
 
 
 def rod_deflection(length_mm: float, d_mm: float, modulus_gpa: float, weight_n: float,
