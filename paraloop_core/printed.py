@@ -3,7 +3,7 @@
 The design's own realization is certified for the paper's thin bars (offset ``d`` 1 % of the
 polyline): its joints are millimetres long at any printable size. :func:`candidates` offers
 roomier realizations instead: the design's loop first, then the other eight, each with the
-joint offset that gives pins of :data:`PIN_MM` at the size the printer allows and bars of
+joint offset that gives pins of :data:`PIN_FRACTIONS` of the loop's extent and bars of
 :data:`RHO_FRACTIONS` of it, each a new search with the same certificate.
 :func:`fabrication.printable.make` picks among them and builds the parts; :func:`export`
 writes the export folder, whose ``result.json`` is the printed loop's result (the format of
@@ -29,9 +29,10 @@ from paraloop_core.pipeline import Solution
 from paraloop_core.realization import polyline, realize
 from paraloop_core.result import result_to_dict
 
-#: Pin lengths (mm at the expected size) of the candidates, best first: room for the
-#: screw's head and nut recesses and two diameters of hold in each boss.
-PIN_MM = (20.0, 26.0, 16.0)
+#: Pin lengths (the offset d) of the candidates as shares of the loop's extent, best first:
+#: about 20 mm at a desk size, room for the screw's head and nut recesses and two diameters
+#: of hold in each boss.
+PIN_FRACTIONS = (0.075, 0.095, 0.06)
 #: Bar radius of the realization search as a share of the offset d: the certified gaps.
 RHO_FRACTIONS = (0.5, 0.35)
 #: Work budget of each candidate search (:meth:`realize.Search.work`).
@@ -81,22 +82,29 @@ def realize_variant(sol: Solution, loop: int, d_fraction: float, rho_fraction: f
 
 def candidates(sol: Solution, printer: printable.Printer, made: list[Solution]
                ) -> Iterator[Candidate]:
-    """Lazy candidates (module docstring); each solution a candidate realizes is appended to
-    ``made`` (the chosen one's result is written)."""
-    size, length, ext = expected_size(sol, printer)
-    order = [sol.design.loop] + [i for i in range(len(sol.loops)) if i != sol.design.loop]
-    for loop in order:
-        for pin in PIN_MM if loop == sol.design.loop else PIN_MM[:1]:
-            for rf in RHO_FRACTIONS:
-                d_fraction = pin * ext / (length * size)
+    """Lazy candidates (module docstring), best first: the design's loop (roomiest first),
+    then every other loop; each solution a candidate realizes is appended to ``made`` (the
+    chosen one's result is written)."""
+    _, length, ext = expected_size(sol, printer)
+    mine = sol.design.loop
+    # the design's loop first; the other loops from the farthest from a singular pose
+    others = sorted((i for i in range(len(sol.loops)) if i != mine),
+                    key=lambda i: -float(sol.singularity[i]))
+    order = [(mine, PIN_FRACTIONS[0], RHO_FRACTIONS[0]), (mine, PIN_FRACTIONS[0],
+                                                           RHO_FRACTIONS[1]),
+             (mine, PIN_FRACTIONS[1], RHO_FRACTIONS[1]), (mine, PIN_FRACTIONS[2],
+                                                           RHO_FRACTIONS[1])]
+    order += [(i, PIN_FRACTIONS[0], RHO_FRACTIONS[1]) for i in others]
+    for loop, pin, rf in order:
+        d_fraction = pin * ext / length
 
-                def run(loop=loop, d_fraction=d_fraction, rf=rf) -> tuple:
-                    s = realize_variant(sol, loop, d_fraction, rf)
-                    made.append(s)
-                    return s.realization, s.end_effector
+        def run(loop=loop, d_fraction=d_fraction, rf=rf) -> tuple:
+            s = realize_variant(sol, loop, d_fraction, rf)
+            made.append(s)
+            return s.realization, s.end_effector
 
-                yield Candidate(f"loop {loop}, offset d = {d_fraction:.3g} l, bars "
-                                f"{rf:g} d", loop, run)
+        yield Candidate(f"loop {loop}, offset d = {d_fraction:.3g} l, bars {rf:g} d", loop,
+                        run)
 
 
 def note(sol: Solution, printed: Printed) -> str:

@@ -253,8 +253,9 @@ def ground(asm: Assembly, density_g_cm3: float, bed_mm: tuple[float, float, floa
     """Every :class:`Base` (module docstring) of ``asm`` whose rod clears the moving parts,
     best first (its joints still screws: the caller lays the grounded joint out for the rod);
     ``only``: ``(joint, side)`` to try just that one; ``need`` ``(6, 6)`` the gap the rod keeps
-    to each moving link (default the sizing's required gaps). The best stands, with the
-    smallest plate, the design's z nearest up, then the shortest rod."""
+    to each moving link (default the sizing's required gaps). The best stands, rests the
+    link the sizing planned the motor torque for, has the smallest plate (the design's z
+    nearest up as a tie-break), then the shortest rod."""
     need = asm.plan.gaps if need is None else need
     u = np.arange(SAMPLES) / SAMPLES
     masses, centers = link_masses(asm, density_g_cm3)
@@ -298,7 +299,8 @@ def ground(asm: Assembly, density_g_cm3: float, bed_mm: tuple[float, float, floa
         inside = radius - float(np.linalg.norm(com2 - center, axis=1).max()) - step
         stands = bool(stands and inside >= MARGIN * 2 * radius * 0.999)
         tilt = float(np.degrees(np.arccos(np.clip(up[2], -1.0, 1.0))))
-        key = (not stands, radius * (1.0 + tilt / 180.0) if stands else -inside, rod_len)
+        key = (not stands, c.link != asm.plan.rest,
+               radius * (1.0 + tilt / 180.0) if stands else -inside, rod_len)
         mount = None if stands else (
             f"the centre of mass comes within {max(inside, 0):.0f} mm of the plate's rim (or "
             "beyond it) in some pose: screw the plate to a board or a table through its four "

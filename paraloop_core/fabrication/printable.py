@@ -48,7 +48,7 @@ from paraloop_core.realization.certified import Realization
 Progress = Callable[[float, str], None]
 #: Most candidate realizations sized before the best so far is taken, and grounding rods tried
 #: (best first) until one leaves both its links flat on the bed.
-MAX_CANDIDATES = 8
+MAX_CANDIDATES = 10
 GROUND_TRIES = 4
 
 
@@ -116,7 +116,7 @@ def predicted_fit(plan: sizing.Plan, points: np.ndarray, printer: Printer) -> fl
 
 
 def _score(plan: sizing.Plan) -> tuple:
-    return (plan.aims_met, round(plan.size_mm, 0), float(plan.radii.min()))
+    return (-plan.level, round(plan.size_mm, 0), float(plan.radii.min()))
 
 
 def choose(candidates: Iterable[Candidate], opts: Options, progress: Progress | None = None
@@ -147,7 +147,7 @@ def choose(candidates: Iterable[Candidate], opts: Options, progress: Progress | 
             continue
         tried.append(f"{cand.label}: {plan.size_mm:.0f} mm, bars "
                      f"{plan.radii.min() * sizing.FLATS:.1f} mm wide or more"
-                     + ("" if plan.aims_met else " (under the aims)"))
+                     + ("" if plan.aims_met else f" ({sizing.LEVELS[plan.level]})"))
         sized.append((cand, real, ee, plan))
         if sum(c[3].aims_met for c in sized) >= (1 if opts.size_mm is not None else 2):
             break  # two that meet the aims (the design's loop first): enough to choose from

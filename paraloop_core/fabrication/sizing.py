@@ -46,8 +46,17 @@ BAR_CAP = (0.028, 4.5, 8.0)
 #: Gaps the programme keeps, per required gap, when it can (the verification then proves the
 #: required gap with room to spare, not at its limit).
 GAP_MARGIN = 1.1
+#: Thickest bar per the radius its deflection bound needs (keeps the parts' mass, and so the
+#: torque the bound was computed for, in check).
+THICKER = 1.35
 #: Bounds (mm) on each link's predicted deflection tried by :func:`at_scale`, stiffest first.
 DEFLECTION_STEPS = (0.1, 0.15, 0.25, 0.4, 0.6, 0.9)
+#: What the sizing reaches, best first: the aims (bars 7 mm wide, 25 times as long, gaps 3 x
+#: the deflections and 10 % more), the floors (6 mm, 30, 3 x), the least gap (1 mm between
+#: every two links, however they bend), thin (bars only as thick as their bores' walls need).
+LEVELS = ("aims", "floors", "least gap", "thin bars")
+#: Smallest size (mm) the search goes down to.
+MIN_SIZE_MM = 100.0
 #: Sizes (mm) tried below the bed's limit, as factors, when the programme is infeasible there.
 SHRINK = 0.9
 #: Hex bars per corner radius: across flats (width) and the flat's distance from the axis.
@@ -97,8 +106,8 @@ class Plan:
     """The sizing: ``size_mm`` (longest side of the polyline), ``scale`` (mm per unit), bar
     corner ``radii`` ``(6,)`` and ``boss`` radii ``(6,)`` (mm), the joint ``layouts``, the
     ``deflection`` estimate, the required ``gaps`` ``(6, 6)`` (the programme kept
-    :data:`GAP_MARGIN` more when ``aims_met``), the motor ``torque_nm`` bound used,
-    ``aims_met`` (width, length/width and gap aims, not only the floors) and ``notes``."""
+    :data:`GAP_MARGIN` more at level 0), the motor ``torque_nm`` bound used, the
+    :data:`LEVELS` ``level`` reached and ``notes``."""
 
     size_mm: float
     scale: float
@@ -108,8 +117,14 @@ class Plan:
     deflection: stiffness.Deflection
     gaps: np.ndarray
     torque_nm: float
-    aims_met: bool
+    level: int
+    #: the resting (grounded) link the torque was planned for (-1: the worst of all)
+    rest: int = -1
     notes: tuple[str, ...] = field(default=())
+
+    @property
+    def aims_met(self) -> bool:
+        return self.level == 0
 
 
 def bar_cap(size_mm: float) -> float:
@@ -118,12 +133,15 @@ def bar_cap(size_mm: float) -> float:
     return float(np.clip(f * size_mm, lo, hi))
 
 
-def min_radii(b: Bounds, k: float, printer: Printer, kind: str, aim: bool) -> np.ndarray:
-    """Thinnest bar corner radius ``(6,)`` (mm) at ``k`` mm per unit: the width, the length per
-    width (aims or floors) and a wall between the bore and the bar's flat underside (the part
-    is printed on that flat: its bosses are cut to it)."""
-    width, lw = (WIDTH_AIM_MM, LW_AIM) if aim else (WIDTH_MM, LW_MAX)
+def min_radii(b: Bounds, k: float, printer: Printer, kind: str, level: int) -> np.ndarray:
+    """Thinnest bar corner radius ``(6,)`` (mm) at ``k`` mm per unit at a :data:`LEVELS`
+    level: the width and length per width (the aims, the floors, or none at the last level)
+    and a wall between the bore and the bar's flat underside (the part is printed on that flat:
+    its bosses are cut to it)."""
     flat = (joints.bore_radius(kind, printer) + printer.wall_mm) / APOTHEM
+    if level >= 3:
+        return np.full(6, flat)
+    width, lw = (WIDTH_AIM_MM, LW_AIM) if level == 0 else (WIDTH_MM, LW_MAX)
     return np.maximum.reduce([np.full(6, width / FLATS), b.bar_lengths * k / (lw * FLATS),
                               np.full(6, flat)])
 
@@ -134,7 +152,7 @@ def min_boss(printer: Printer, kind: str, rod: Rod) -> float:
     return max(joints.min_boss_radius(kind, printer), joints.min_boss_radius("rod", printer, rod))
 
 
-def radii(b: Bounds, k: float, rmin: np.ndarray, rcap: float, bmin: float,
+def radii(b: Bounds, k: float, rmin: np.ndarray, rcap: float | np.ndarray, bmin: float,
           env: np.ndarray, gaps: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
     """Bar corner radii and boss radii ``(6,), (6,)`` (mm) at ``k`` mm per unit (module
     docstring), or None when no radii meet every row; ``rmin`` ``(6,)``, ``rcap``, ``bmin``
@@ -177,7 +195,8 @@ def radii(b: Bounds, k: float, rmin: np.ndarray, rcap: float, bmin: float,
     a_ub, b_ub = np.array(rows_a), np.array(rows_b)
     if np.any((np.abs(a_ub).sum(axis=1) == 0) & (b_ub < 0)):
         return None  # metal pieces alone are too close for a row
-    bounds = [(float(rmin[i]), rcap) for i in range(6)] + [(bmin, None)] * 6
+    top = np.broadcast_to(np.asarray(rcap, float), (6,))
+    bounds = [(float(rmin[i]), float(top[i])) for i in range(6)] + [(bmin, None)] * 6
     # 1) the largest thinnest bar t (variable 12): t - R_i <= 0
     a1 = np.hstack([a_ub, np.zeros((len(a_ub), 1))])
     floor = np.zeros((6, 13))
@@ -241,56 +260,79 @@ def torque_matrix(real) -> np.ndarray:
 
 
 def torque_bound(real, k: float, radius: np.ndarray, boss: np.ndarray, density: float,
-                 matrix: np.ndarray) -> float:
+                 matrix: np.ndarray, rest: int | None = None) -> float:
     """An estimate (N m) of the motor's peak torque against gravity of parts with bar corner
     radii ``radius`` ``(6,)`` and bosses ``boss`` ``(6,)`` (mm) at ``k`` mm per unit: each
-    link's mass (bar and half of both its joints) at its bar's middle, the worst over every
-    link resting (the grounding is chosen later) and its recommended motor
-    (:func:`torque_matrix`)."""
+    link's mass (bar and half of both its joints) at its bar's middle, link ``rest`` resting
+    with its recommended motor (None: the worst over every link resting) (:func:`torque_matrix`)."""
     pts = np.asarray(real.points, float)
     length = np.linalg.norm(pts[1::2] - pts[0::2], axis=-1) * k
     pin = np.linalg.norm(pts[1::2] - np.roll(pts[0::2], -1, axis=0), axis=-1) * k
     hub = np.pi * np.square(boss) * (pin + 4 * boss) / 2  # half of each of its two joints
     vol = stiffness.hex_area(radius) * length + hub + np.roll(hub, 1)
     mass = vol * density * 1e-6  # kg: mm^3 x g/cm^3
-    return float(np.max(np.abs(matrix @ mass)) * k)
+    m = matrix if rest is None else matrix[rest:rest + 1]
+    return float(np.max(np.abs(m @ mass)) * k)
+
+
+def easiest_rest(real, matrix: np.ndarray) -> int:
+    """The resting link whose recommended motor lifts the loop with the least peak torque
+    (bars of equal section): the grounding the sizing plans for, the base prefers it."""
+    pts = np.asarray(real.points, float)
+    mass = np.linalg.norm(pts[1::2] - pts[0::2], axis=-1)
+    return int(np.argmin(np.abs(matrix @ mass).max(axis=1)))
 
 
 def at_scale(real, b: Bounds, k: float, printer: Printer, material: Material, kind: str,
-             rod: Rod, eps: float, matrix: np.ndarray) -> Plan | None:
-    """The :class:`Plan` at ``k`` mm per unit, or None when no radii meet the rows there.
+             rod: Rod, eps: float, matrix: np.ndarray, level: int = 0, rest: int | None = None
+             ) -> Plan | None:
+    """The :class:`Plan` at ``k`` mm per unit at a :data:`LEVELS` level, or None when no
+    radii meet the rows there.
 
     The deflections couple the radii to the gaps (thicker bars bend less but leave less
     room), so the programme runs with a bound ``delta`` on every link's predicted deflection
     (:data:`DEFLECTION_STEPS`, stiffest first): each bar at least the radius that keeps it
-    (:func:`stiffness.radius_for`, under the heaviest parts' torque), every gap at least
-    ``max(1 mm, 3 x 2 delta)``; first with the width, length/width and gap aims, then with the
-    floors. The first feasible one is kept."""
+    (:func:`stiffness.radius_for`) under the motor torque of bars up to :data:`THICKER` times
+    that radius (their upper bound in the programme), every gap at least
+    ``max(1 mm, 3 x 2 delta)`` (levels 0 and 1; levels 2 and 3 keep the least gap only). The
+    first feasible one is kept."""
     size = k * b.extent
     rcap, bmin = bar_cap(size), min_boss(printer, kind, rod)
     lengths = b.bar_lengths * k
-    heavy = torque_bound(real, k, np.full(6, rcap), np.full(6, BOSS_PER_BAR * rcap),
-                         material.density_g_cm3, matrix)
-    for aim in (True, False):
-        margin = GAP_MARGIN if aim else 1.0
-        floor = min_radii(b, k, printer, kind, aim)
-        for delta in DEFLECTION_STEPS:
-            stiff = stiffness.radius_for(delta, lengths, material.modulus_gpa,
-                                         material.density_g_cm3, heavy)
-            rmin = np.maximum(floor, stiff)
-            if np.any(rmin > rcap):
-                continue
-            gaps = stiffness.required_gaps(np.full(6, delta)) * margin
-            plan = _settle(real, b, k, printer, material, kind, eps, rmin, rcap, bmin, gaps,
-                           matrix)
-            if plan is not None:
-                return replace(plan, aims_met=aim)
+    e, rho = material.modulus_gpa, material.density_g_cm3
+    margin = GAP_MARGIN if level == 0 else 1.0
+    floor = min_radii(b, k, printer, kind, level)
+    if np.any(floor > rcap + 1e-9):
+        return None
+    if level >= 2:
+        top = np.full(6, rcap)
+        plan = _settle(real, b, k, printer, material, kind, eps, floor, top, bmin,
+                       np.full((6, 6), stiffness.MIN_GAP_MM), matrix, rest)
+        return None if plan is None else replace(plan, level=level)
+    for delta in DEFLECTION_STEPS:
+        # the torque of bars up to THICKER x the radius they need, which needs the torque:
+        # a few rounds of the fixed point (monotone: heavier parts need thicker bars)
+        rmin = floor
+        for _ in range(4):
+            top = np.minimum(rcap, THICKER * rmin)
+            tq = torque_bound(real, k, top, BOSS_PER_BAR * top, rho, matrix, rest)
+            need = np.maximum(floor, stiffness.radius_for(delta, lengths, e, rho, tq))
+            if np.all(need <= rmin + 1e-9):
+                break
+            rmin = need
+        if np.any(rmin > rcap) or np.any(need > rmin + 1e-9):
+            continue
+        gaps = stiffness.required_gaps(np.full(6, delta)) * margin
+        plan = _settle(real, b, k, printer, material, kind, eps, rmin, top, bmin, gaps, matrix,
+                       rest)
+        if plan is not None:
+            return replace(plan, level=level)
     return None
 
 
 def _settle(real, b: Bounds, k: float, printer: Printer, material: Material, kind: str,
-            eps: float, rmin: np.ndarray, rcap: float, bmin: float, gaps: np.ndarray,
-            matrix: np.ndarray) -> Plan | None:
+            eps: float, rmin: np.ndarray, rcap: np.ndarray, bmin: float, gaps: np.ndarray,
+            matrix: np.ndarray, rest: int | None) -> Plan | None:
     """Radii for fixed ``gaps``, repeated until the joint layouts they imply (how far the
     bosses and hardware reach past the pins) are those the programme assumed."""
     r = rmin
@@ -307,46 +349,46 @@ def _settle(real, b: Bounds, k: float, printer: Printer, material: Material, kin
         except FabricationError:
             return None
         if np.all(envelopes(lay) <= env + 1e-9):
-            tq = torque_bound(real, k, r, boss, material.density_g_cm3, matrix)
+            tq = torque_bound(real, k, r, boss, material.density_g_cm3, matrix, rest)
             d = stiffness.deflections(b.bar_lengths * k, r, np.ones(6), material.modulus_gpa,
                                       material.density_g_cm3, tq)
             return Plan(k * b.extent, k, r, boss, lay, d, stiffness.required_gaps(d.total),
-                        tq, True)
+                        tq, 0, -1 if rest is None else rest)
     return None
 
 
 def plan(real, printer: Printer, material: Material, kind: str, rod: Rod, *,
          size_mm: float | None = None, eps: float = 0.05, fit=None) -> Plan:
-    """The :class:`Plan` (module docstring) of a realization: at ``size_mm`` if given (refused
-    when infeasible there), else the largest size whose predicted parts fit the bed
+    """The :class:`Plan` (module docstring) of a realization: the first :data:`LEVELS` level
+    met at some size, at the largest such size whose predicted parts fit the bed
     (``fit(plan) -> factor``: by how much the parts may still grow, <= 1 when they do not
-    fit) and meet the programme, shrinking by :data:`SHRINK` until they do."""
+    fit), shrinking by :data:`SHRINK` down to :data:`MIN_SIZE_MM`; at ``size_mm`` if given.
+    Raises :class:`FabricationError` when no level is met at any size tried."""
     b = bounds_of(real)
     matrix = torque_matrix(real)
-    if size_mm is not None:
-        p = at_scale(real, b, size_mm / b.extent, printer, material, kind, rod, eps, matrix)
-        if p is None:
-            raise FabricationError(
-                f"at {size_mm:.0f} mm no bars at least {WIDTH_MM:g} mm wide and at most "
-                f"{LW_MAX:g} times as long keep the links apart over the cycle with this "
-                "realization; try a larger size or let the program choose", "bad-parameters")
-        return p
-    k = _bed_scale(b, printer)
-    tried = []
-    for _ in range(24):
-        p = at_scale(real, b, k, printer, material, kind, rod, eps, matrix)
-        if p is not None:
-            grow = fit(p) if fit is not None else 1.0
-            if grow >= 1.0:
+    rest = easiest_rest(real, matrix)
+    for level in range(len(LEVELS)):
+        if size_mm is not None:
+            p = at_scale(real, b, size_mm / b.extent, printer, material, kind, rod, eps, matrix,
+                         level, rest)
+            if p is not None:
                 return p
-            k *= max(min(grow, 0.99), 0.5)
             continue
-        tried.append(k * b.extent)
-        k *= SHRINK
+        k = _bed_scale(b, printer)
+        while k * b.extent >= MIN_SIZE_MM:
+            p = at_scale(real, b, k, printer, material, kind, rod, eps, matrix, level, rest)
+            if p is not None:
+                grow = fit(p) if fit is not None else 1.0
+                if grow >= 1.0:
+                    return p
+                k *= max(min(grow, 0.99), 0.5)
+                continue
+            k *= SHRINK
+    where = f"at {size_mm:.0f} mm" if size_mm is not None else \
+        f"at any size from {_bed_scale(b, printer) * b.extent:.0f} mm down to {MIN_SIZE_MM:g} mm"
     raise FabricationError(
-        f"no size from {tried[0]:.0f} mm down to {tried[-1]:.0f} mm gives bars at least "
-        f"{WIDTH_MM:g} mm wide, at most {LW_MAX:g} times as long, that keep the links apart "
-        "over the cycle", "bad-parameters")
+        f"{where} the joints' bosses and hardware ({kind}) and bars do not fit in the room "
+        "this realization's certificate leaves between the links", "bad-parameters")
 
 
 def _bed_scale(b: Bounds, printer: Printer) -> float:
@@ -404,7 +446,8 @@ def to_dict(plan: Plan, printer: Printer) -> dict:
     return {"size_mm": plan.size_mm, "scale_mm_per_unit": plan.scale,
             "bar_radius_mm": plan.radii.tolist(),
             "bar_width_mm": (plan.radii * FLATS).tolist(), "boss_radius_mm": plan.boss.tolist(),
-            "aims_met": plan.aims_met, "motor_torque_bound_nm": plan.torque_nm,
+            "aims_met": plan.aims_met, "level": LEVELS[plan.level],
+            "motor_torque_bound_nm": plan.torque_nm,
             "required_gap_mm": plan.gaps.tolist(), "printer": printer.name,
             "bed_mm": list(printer.bed_mm), "wall_mm": printer.wall_mm,
             "clearance_mm": printer.clearance_mm,
