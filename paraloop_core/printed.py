@@ -21,7 +21,7 @@ import numpy as np
 from paraloop_core import pipeline
 from paraloop_core.design import DriveSettings
 from paraloop_core.errors import RealizationError
-from paraloop_core.fabrication import animate, check, guide, printable, sizing
+from paraloop_core.fabrication import animate, bed, check, guide, printable
 from paraloop_core.fabrication import export as export_files
 from paraloop_core.fabrication.printable import Candidate, Options, Printed
 from paraloop_core.linkage import drive_plan
@@ -51,9 +51,7 @@ def expected_size(sol: Solution, printer: printable.Printer) -> tuple[float, flo
         _, pts6 = polyline.shortest_polyline(sol.loop.joint_factors)
         pts, length = np.repeat(pts6, 2, axis=0), polyline.polyline_length(pts6)
     ext = float(np.max(np.ptp(pts, axis=0)))
-    b = sizing.Bounds(pts, np.zeros((0, 4), int), np.zeros(0), np.ones(6), np.ones(6), ext,
-                      np.zeros((6, 6)))
-    return sizing._bed_scale(b, printer) * ext * 0.8, float(length), ext
+    return bed.bed_scale(pts, printer) * ext * 0.8, float(length), ext
 
 
 def realize_variant(sol: Solution, loop: int, d_fraction: float, rho_fraction: float,

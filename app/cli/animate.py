@@ -1,7 +1,8 @@
 """``paraloop animate DESIGN.json --out loop.glb``: the realized loop as an animated glTF.
 
 Solves the design (with its realization) and writes one binary glTF 2.0 file: the six links as
-capsules, each a node with translation and rotation keyframes over one full cycle, turned as
+capsules (with ``--printed``: the printed parts, as ``paraloop export`` makes them, on their
+base), each a node with translation and rotation keyframes over one full cycle, turned as
 the design's drive turns it: its motor (recommended unless set) with the speed schedule of its
 drive plan, over its cycle time (:func:`app.exports.animation_keyframes`,
 :mod:`paraloop_core.fabrication.animate`). ``--out`` is checked
@@ -20,7 +21,7 @@ from app.cli import outputs
 from app.cli.export import solve_realized
 from app.cli.outputs import EXIT_OK
 from app.exports import animation_keyframes
-from paraloop_core import pipeline
+from paraloop_core import pipeline, printed
 from paraloop_core.design import Design
 from paraloop_core.fabrication import animate
 
@@ -38,6 +39,11 @@ def cmd_animate(args: argparse.Namespace) -> int:
     out = Path(args.out)
     check_out(out, path, args.force)
     def work(design: Design, sol: pipeline.Solution) -> tuple[bytes, float, str]:
+        if args.printed:  # the loop as `paraloop export` prints it, on its base
+            made, _ = printed.make(sol)
+            glb, how = printed.animation(made, design.drive, args.frames, args.seconds)
+            return glb, args.seconds or design.drive.cycle_time_s, \
+                f"the printed parts ({made.candidate}), {how}"
         real = sol.realization
         t, cycle, how = animation_keyframes(real, design.drive, args.frames)
         seconds = args.seconds or cycle
@@ -65,5 +71,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--seconds", type=outputs.float_range(0.0, 86_400.0, lo_open=True),
                    default=None, help="duration of one cycle in seconds (default: the "
                    "design's drive.cycle_time_s, 10 unless set)")
+    p.add_argument("--printed", action="store_true",
+                   help="animate the loop as `paraloop export` prints it: its parts, joints "
+                        "and base, resting on its grounded link (millimetres)")
     p.add_argument("--force", action="store_true", help="overwrite an existing --out file")
     p.set_defaults(func=cmd_animate)

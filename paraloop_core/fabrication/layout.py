@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 import trimesh
 
-from paraloop_core.fabrication import profiles, sizing
+from paraloop_core.fabrication import bed, profiles, sizing
 from paraloop_core.fabrication.joints import Joint
 from paraloop_core.fabrication.parts import SEAT_MM
 
@@ -158,7 +158,7 @@ def bed_layout(meshes: dict[str, trimesh.Trimesh], downs: dict[str, np.ndarray],
         box = trimesh.transform_points(mesh.vertices, m)
         room = np.asarray(bed_mm[:2], float) - 2 * GAP_MM
         if np.any(np.ptp(box[:, :2], axis=0) > room):  # turned (diagonal) if that fits
-            _, angle = sizing.footprint_turn(np.ptp(box[:, :2], axis=0), room)
+            _, angle = bed.footprint_turn(np.ptp(box[:, :2], axis=0), room)
             m = trimesh.transformations.rotation_matrix(float(angle), [0, 0, 1]) @ m
             box = trimesh.transform_points(mesh.vertices, m)
         m = trimesh.transformations.translation_matrix(-box.min(axis=0)) @ m

@@ -30,6 +30,7 @@ from paraloop_core.errors import FabricationError, RealizationError
 from paraloop_core.fabrication import (
     assembly,
     base,
+    bed,
     check,
     drive_mass,
     joints,
@@ -111,7 +112,7 @@ def predicted_fit(plan: sizing.Plan, points: np.ndarray, printer: Printer) -> fl
         centred = c - c.mean(0)
         vt = np.linalg.svd(centred, full_matrices=False)[2]
         ext = np.ptp(centred @ vt.T, axis=0) + 2 * max(plan.boss.max(), plan.radii[i])
-        worst = min(worst, float(sizing.fit_factor(ext[None], printer)[0]))
+        worst = min(worst, float(bed.fit_factor(ext[None], printer)[0]))
     return worst
 
 
@@ -173,7 +174,7 @@ def _fit_and_build(real: Realization, ee: object | None, plan: sizing.Plan, opts
         asm = assembly.assemble(plan, real.points, real.joint_factors, opts.printer,
                                 opts.joints, end_bars=end_bars, extras=extras)
         ext = np.array([_printed_extent(p) for p in asm.links])
-        grow = float(sizing.fit_factor(ext, opts.printer).min())
+        grow = float(bed.fit_factor(ext, opts.printer).min())
         if grow >= 1.0 or opts.size_mm is not None:
             return asm, plan
         plan = sizing.plan(real, opts.printer, opts.material, opts.joints, opts.rod,
@@ -283,9 +284,9 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
     report = {
         "choice": {"realization": cand.label, "loop": cand.loop, "tried": tried,
                    "radius": real.radius, "separation": real.separation},
-        "sizing": sizing.to_dict(plan, opts.printer),
+        "sizing": sizing.to_dict(plan, opts.printer, sizing.bounds_of(real)),
         "joints": [joints.to_dict(j) for j in asm.joints],
-        "verification": ver, "warnings": warnings,
+        "verification": ver, "warnings": warnings + _level_warnings(plan),
         "print_flat_slack_mm": asm.slack.tolist()}
     if b is not None:
         report["base"] = base.to_dict(b, opts.printer.bed_mm)
@@ -303,6 +304,20 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
     if progress is not None:
         progress(1.0, "parts verified")
     return Printed(asm, real, ee, cand.loop, cand.label, b, report)
+
+
+def _level_warnings(plan: sizing.Plan) -> list[str]:
+    """What the sizing could not reach, in words (:data:`sizing.LEVELS`)."""
+    if plan.level == 2:
+        return ["the certificate leaves room for the gaps of 1 mm between the links, not for "
+                "three times their predicted deflection: handle it gently near its tightest "
+                "pose (report: sizing.limiting_pair)"]
+    if plan.level == 3:
+        width = float(plan.radii.min() * sizing.FLATS)
+        return [f"the thinnest bar is {width:.1f} mm wide, under the {sizing.WIDTH_MM:g} mm "
+                "a printed bar should have: the best this realization's certificate allows "
+                "(report: sizing.limiting_pair names the pair that limits it)"]
+    return []
 
 
 def walls(asm: Assembly, printer: Printer) -> dict:

@@ -30,9 +30,9 @@ import numpy as np
 from scipy.optimize import linprog
 
 from paraloop_core.errors import FabricationError
-from paraloop_core.fabrication import joints, stiffness
+from paraloop_core.fabrication import bed, joints, stiffness
 from paraloop_core.fabrication.profiles import Material, Printer, Rod
-from paraloop_core.linkage import drive, loops
+from paraloop_core.linkage import loops
 
 #: Bars at least this wide across flats (mm): the floor, and the width aimed for.
 WIDTH_MM, WIDTH_AIM_MM = 6.0, 7.0
@@ -237,52 +237,6 @@ def envelopes(layouts: tuple[joints.Joint, ...]) -> np.ndarray:
     return np.array([joints.envelope(j) for j in layouts])
 
 
-def torque_matrix(real) -> np.ndarray:
-    """``(6, T, 6)``: for each resting link, the quasi-static motor torque (N m) of its
-    recommended motor at ``T`` motor angles per kilogram at each link's bar middle, the loop
-    at 1 mm per design unit. The torque is linear in the masses and in the scale, so
-    :func:`torque_bound` is a product."""
-    pts = np.asarray(real.points, float)
-    centers = (pts[0::2] + pts[1::2]) / 2 * 1e-3  # m at 1 mm per unit
-    theta = np.linspace(0.0, 2 * np.pi, 64, endpoint=False)
-    out = np.zeros((6, len(theta), 6))
-    for rest in range(6):
-        motor = drive.recommend_motor(real.joint_factors, rest).motor
-        for link in range(6):
-            if link == rest:
-                continue
-            unit = np.zeros(6)
-            unit[link] = 1.0
-            out[rest, :, link] = drive.motor_torque(real.joint_factors, motor, unit, centers,
-                                                    length_unit_m=1e-3, resting_link=rest,
-                                                    theta=theta).torque
-    return out
-
-
-def torque_bound(real, k: float, radius: np.ndarray, boss: np.ndarray, density: float,
-                 matrix: np.ndarray, rest: int | None = None) -> float:
-    """An estimate (N m) of the motor's peak torque against gravity of parts with bar corner
-    radii ``radius`` ``(6,)`` and bosses ``boss`` ``(6,)`` (mm) at ``k`` mm per unit: each
-    link's mass (bar and half of both its joints) at its bar's middle, link ``rest`` resting
-    with its recommended motor (None: the worst over every link resting) (:func:`torque_matrix`)."""
-    pts = np.asarray(real.points, float)
-    length = np.linalg.norm(pts[1::2] - pts[0::2], axis=-1) * k
-    pin = np.linalg.norm(pts[1::2] - np.roll(pts[0::2], -1, axis=0), axis=-1) * k
-    hub = np.pi * np.square(boss) * (pin + 4 * boss) / 2  # half of each of its two joints
-    vol = stiffness.hex_area(radius) * length + hub + np.roll(hub, 1)
-    mass = vol * density * 1e-6  # kg: mm^3 x g/cm^3
-    m = matrix if rest is None else matrix[rest:rest + 1]
-    return float(np.max(np.abs(m @ mass)) * k)
-
-
-def easiest_rest(real, matrix: np.ndarray) -> int:
-    """The resting link whose recommended motor lifts the loop with the least peak torque
-    (bars of equal section): the grounding the sizing plans for, the base prefers it."""
-    pts = np.asarray(real.points, float)
-    mass = np.linalg.norm(pts[1::2] - pts[0::2], axis=-1)
-    return int(np.argmin(np.abs(matrix @ mass).max(axis=1)))
-
-
 def at_scale(real, b: Bounds, k: float, printer: Printer, material: Material, kind: str,
              rod: Rod, eps: float, matrix: np.ndarray, level: int = 0, rest: int | None = None
              ) -> Plan | None:
@@ -315,7 +269,7 @@ def at_scale(real, b: Bounds, k: float, printer: Printer, material: Material, ki
         rmin = floor
         for _ in range(4):
             top = np.minimum(rcap, THICKER * rmin)
-            tq = torque_bound(real, k, top, BOSS_PER_BAR * top, rho, matrix, rest)
+            tq = stiffness.torque_bound(real, k, top, BOSS_PER_BAR * top, rho, matrix, rest)
             need = np.maximum(floor, stiffness.radius_for(delta, lengths, e, rho, tq))
             if np.all(need <= rmin + 1e-9):
                 break
@@ -349,7 +303,7 @@ def _settle(real, b: Bounds, k: float, printer: Printer, material: Material, kin
         except FabricationError:
             return None
         if np.all(envelopes(lay) <= env + 1e-9):
-            tq = torque_bound(real, k, r, boss, material.density_g_cm3, matrix, rest)
+            tq = stiffness.torque_bound(real, k, r, boss, material.density_g_cm3, matrix, rest)
             d = stiffness.deflections(b.bar_lengths * k, r, np.ones(6), material.modulus_gpa,
                                       material.density_g_cm3, tq)
             return Plan(k * b.extent, k, r, boss, lay, d, stiffness.required_gaps(d.total),
@@ -365,8 +319,8 @@ def plan(real, printer: Printer, material: Material, kind: str, rod: Rod, *,
     fit), shrinking by :data:`SHRINK` down to :data:`MIN_SIZE_MM`; at ``size_mm`` if given.
     Raises :class:`FabricationError` when no level is met at any size tried."""
     b = bounds_of(real)
-    matrix = torque_matrix(real)
-    rest = easiest_rest(real, matrix)
+    matrix = stiffness.torque_matrix(real)
+    rest = stiffness.easiest_rest(real, matrix)
     for level in range(len(LEVELS)):
         if size_mm is not None:
             p = at_scale(real, b, size_mm / b.extent, printer, material, kind, rod, eps, matrix,
@@ -374,7 +328,7 @@ def plan(real, printer: Printer, material: Material, kind: str, rod: Rod, *,
             if p is not None:
                 return p
             continue
-        k = _bed_scale(b, printer)
+        k = bed.bed_scale(b.points, printer)
         while k * b.extent >= MIN_SIZE_MM:
             p = at_scale(real, b, k, printer, material, kind, rod, eps, matrix, level, rest)
             if p is not None:
@@ -385,65 +339,40 @@ def plan(real, printer: Printer, material: Material, kind: str, rod: Rod, *,
                 continue
             k *= SHRINK
     where = f"at {size_mm:.0f} mm" if size_mm is not None else \
-        f"at any size from {_bed_scale(b, printer) * b.extent:.0f} mm down to {MIN_SIZE_MM:g} mm"
+        f"at any size from {bed.bed_scale(b.points, printer) * b.extent:.0f} mm down to " \
+        f"{MIN_SIZE_MM:g} mm"
     raise FabricationError(
         f"{where} the joints' bosses and hardware ({kind}) and bars do not fit in the room "
         "this realization's certificate leaves between the links", "bad-parameters")
 
 
-def _bed_scale(b: Bounds, printer: Printer) -> float:
-    """mm per unit at which every link's skeleton (its bar and half of each pin) would just
-    fit the bed, flat: a first guess refined by the caller's ``fit``."""
-    pts = b.points
-    s, e = pts[0::2], pts[1::2]
-    link = np.stack([(np.roll(e, 1, axis=0) + s) / 2, s, e, (e + np.roll(s, -1, axis=0)) / 2], 1)
-    centred = link - link.mean(axis=1, keepdims=True)
-    _, _, vt = np.linalg.svd(centred)
-    ext = np.ptp(np.einsum("pnk,pjk->pnj", centred, vt), axis=1)
-    return float(fit_factor(ext, printer).min())
+def limiting(plan: Plan, b: Bounds) -> dict:
+    """The certified row that holds the thinnest bar back: among the rows with that bar, the
+    one with the least room left at the plan's radii, bosses, joint reaches and gaps."""
+    env = envelopes(plan.layouts)
+    k, thin = plan.scale, int(np.argmin(plan.radii))
+    best = None
+    for (e1, e2, la, lb), low in zip(b.rows, b.lower, strict=True):
+        if thin * 2 not in (e1, e2):
+            continue
+        use = 0.0
+        for e in (int(e1), int(e2)):
+            use += plan.radii[e // 2] if e % 2 == 0 else plan.boss[e // 2] + env[e // 2, 0]
+        room = k * low - use - plan.gaps[la, lb]
+        if best is None or room < best[0]:
+            best = (room, int(la), int(lb), k * low)
+    if best is None:
+        return {}
+    return {"links": [best[1], best[2]], "thinnest_bar_link": thin,
+            "certified_distance_mm": best[3], "room_left_mm": best[0],
+            "meaning": "the pair of links whose certified distance over the cycle, less the "
+                       "other's bar or joint and the gap they keep, limits the thinnest bar"}
 
 
-#: Turns about the vertical (radians, 0.5 degree steps) tried for a footprint: a long thin
-#: part that does not fit the bed square-on may fit diagonally.
-TURNS = np.radians(np.arange(0.0, 90.01, 0.5))
-
-
-def footprint_turn(size_xy: np.ndarray, bed_xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``(factor, turn)`` ``(...)`` for footprints ``size_xy`` ``(..., 2)`` (mm) on a bed
-    ``bed_xy`` ``(2,)``: the largest factor by which a footprint may grow and still fit, turned
-    by ``turn`` (radians, one of :data:`TURNS`) about the vertical."""
-    w = np.asarray(size_xy, float)[..., None, :]
-    c, s = np.cos(TURNS), np.sin(TURNS)
-    fx = bed_xy[0] / np.maximum(w[..., 0] * c + w[..., 1] * s, 1e-12)
-    fy = bed_xy[1] / np.maximum(w[..., 0] * s + w[..., 1] * c, 1e-12)
-    f = np.minimum(fx, fy)
-    best = np.argmax(f, axis=-1)
-    return np.take_along_axis(f, best[..., None], -1)[..., 0], TURNS[best]
-
-
-def fit_factor(extents_mm: np.ndarray, printer: Printer) -> np.ndarray:
-    """Largest factor ``(P,)`` by which parts with box extents ``(P, 3)`` may grow and still
-    fit the bed, the box resting on any of its faces and turned about the vertical (a long bar
-    fits diagonally); at least 1 where the part fits."""
-    ext = np.asarray(extents_mm, float)
-    bed = np.asarray(printer.bed_mm, float)
-    best = np.zeros(ext.shape[:-1])
-    for up in range(3):  # which box side stands vertical
-        flat = np.delete(ext, up, axis=-1)
-        f, _ = footprint_turn(flat, bed[:2])
-        best = np.maximum(best, np.minimum(f, bed[2] / np.maximum(ext[..., up], 1e-12)))
-    return best
-
-
-def fits_bed(extents_mm: np.ndarray, printer: Printer) -> np.ndarray:
-    """Mask ``(P,)``: parts with box extents ``(P, 3)`` fit the bed in some orientation
-    (:func:`fit_factor`)."""
-    return fit_factor(extents_mm, printer) >= 1.0 - 1e-9
-
-
-def to_dict(plan: Plan, printer: Printer) -> dict:
-    """The report's ``sizing`` entry."""
-    return {"size_mm": plan.size_mm, "scale_mm_per_unit": plan.scale,
+def to_dict(plan: Plan, printer: Printer, b: Bounds | None = None) -> dict:
+    """The report's ``sizing`` entry (with ``b``: the limiting pair, :func:`limiting`)."""
+    return {"limiting_pair": limiting(plan, b) if b is not None else {},
+            "size_mm": plan.size_mm, "scale_mm_per_unit": plan.scale,
             "bar_radius_mm": plan.radii.tolist(),
             "bar_width_mm": (plan.radii * FLATS).tolist(), "boss_radius_mm": plan.boss.tolist(),
             "aims_met": plan.aims_met, "level": LEVELS[plan.level],

@@ -25,6 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from paraloop_core.linkage import drive
+
 G = 9.81
 #: Smallest gap (mm) between links that do not share a joint, whatever the deflection.
 MIN_GAP_MM = 1.0
@@ -134,3 +136,49 @@ def to_dict(d: Deflection, modulus_gpa: float, torque_nm: float) -> dict:
                       "its most horizontal pose of the cycle, and the motor's peak torque as "
                       "end moments on the bar (mid-span deflection); as-printed modulus at "
                       "the low end of the material's range"}
+
+
+def torque_matrix(real) -> np.ndarray:
+    """``(6, T, 6)``: for each resting link, the quasi-static motor torque (N m) of its
+    recommended motor at ``T`` motor angles per kilogram at each link's bar middle, the loop
+    at 1 mm per design unit. The torque is linear in the masses and in the scale, so
+    :func:`torque_bound` is a product."""
+    pts = np.asarray(real.points, float)
+    centers = (pts[0::2] + pts[1::2]) / 2 * 1e-3  # m at 1 mm per unit
+    theta = np.linspace(0.0, 2 * np.pi, 64, endpoint=False)
+    out = np.zeros((6, len(theta), 6))
+    for rest in range(6):
+        motor = drive.recommend_motor(real.joint_factors, rest).motor
+        for link in range(6):
+            if link == rest:
+                continue
+            unit = np.zeros(6)
+            unit[link] = 1.0
+            out[rest, :, link] = drive.motor_torque(real.joint_factors, motor, unit, centers,
+                                                    length_unit_m=1e-3, resting_link=rest,
+                                                    theta=theta).torque
+    return out
+
+
+def torque_bound(real, k: float, radius: np.ndarray, boss: np.ndarray, density: float,
+                 matrix: np.ndarray, rest: int | None = None) -> float:
+    """An estimate (N m) of the motor's peak torque against gravity of parts with bar corner
+    radii ``radius`` ``(6,)`` and bosses ``boss`` ``(6,)`` (mm) at ``k`` mm per unit: each
+    link's mass (bar and half of both its joints) at its bar's middle, link ``rest`` resting
+    with its recommended motor (None: the worst over every link resting) (:func:`torque_matrix`)."""
+    pts = np.asarray(real.points, float)
+    length = np.linalg.norm(pts[1::2] - pts[0::2], axis=-1) * k
+    pin = np.linalg.norm(pts[1::2] - np.roll(pts[0::2], -1, axis=0), axis=-1) * k
+    hub = np.pi * np.square(boss) * (pin + 4 * boss) / 2  # half of each of its two joints
+    vol = hex_area(radius) * length + hub + np.roll(hub, 1)
+    mass = vol * density * 1e-6  # kg: mm^3 x g/cm^3
+    m = matrix if rest is None else matrix[rest:rest + 1]
+    return float(np.max(np.abs(m @ mass)) * k)
+
+
+def easiest_rest(real, matrix: np.ndarray) -> int:
+    """The resting link whose recommended motor lifts the loop with the least peak torque
+    (bars of equal section): the grounding the sizing plans for, the base prefers it."""
+    pts = np.asarray(real.points, float)
+    mass = np.linalg.norm(pts[1::2] - pts[0::2], axis=-1)
+    return int(np.argmin(np.abs(matrix @ mass).max(axis=1)))

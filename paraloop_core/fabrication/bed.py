@@ -1,0 +1,60 @@
+"""Fitting parts on a printer's bed: box footprints turned about the vertical.
+
+A long thin part that does not fit the bed square-on may fit diagonally; a part may rest on any
+face of its box.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from paraloop_core.fabrication.profiles import Printer
+
+#: Turns about the vertical (radians, 0.5 degree steps) tried for a footprint: a long thin
+#: part that does not fit the bed square-on may fit diagonally.
+TURNS = np.radians(np.arange(0.0, 90.01, 0.5))
+
+
+def footprint_turn(size_xy: np.ndarray, bed_xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(factor, turn)`` ``(...)`` for footprints ``size_xy`` ``(..., 2)`` (mm) on a bed
+    ``bed_xy`` ``(2,)``: the largest factor by which a footprint may grow and still fit, turned
+    by ``turn`` (radians, one of :data:`TURNS`) about the vertical."""
+    w = np.asarray(size_xy, float)[..., None, :]
+    c, s = np.cos(TURNS), np.sin(TURNS)
+    fx = bed_xy[0] / np.maximum(w[..., 0] * c + w[..., 1] * s, 1e-12)
+    fy = bed_xy[1] / np.maximum(w[..., 0] * s + w[..., 1] * c, 1e-12)
+    f = np.minimum(fx, fy)
+    best = np.argmax(f, axis=-1)
+    return np.take_along_axis(f, best[..., None], -1)[..., 0], TURNS[best]
+
+
+def fit_factor(extents_mm: np.ndarray, printer: Printer) -> np.ndarray:
+    """Largest factor ``(P,)`` by which parts with box extents ``(P, 3)`` may grow and still
+    fit the bed, the box resting on any of its faces and turned about the vertical (a long bar
+    fits diagonally); at least 1 where the part fits."""
+    ext = np.asarray(extents_mm, float)
+    bed = np.asarray(printer.bed_mm, float)
+    best = np.zeros(ext.shape[:-1])
+    for up in range(3):  # which box side stands vertical
+        flat = np.delete(ext, up, axis=-1)
+        f, _ = footprint_turn(flat, bed[:2])
+        best = np.maximum(best, np.minimum(f, bed[2] / np.maximum(ext[..., up], 1e-12)))
+    return best
+
+
+def fits_bed(extents_mm: np.ndarray, printer: Printer) -> np.ndarray:
+    """Mask ``(P,)``: parts with box extents ``(P, 3)`` fit the bed in some orientation
+    (:func:`fit_factor`)."""
+    return fit_factor(extents_mm, printer) >= 1.0 - 1e-9
+
+
+def bed_scale(points: np.ndarray, printer: Printer) -> float:
+    """mm per unit at which every link's skeleton (its bar and half of each pin) would just
+    fit the bed, flat: a first guess refined by the caller's ``fit``."""
+    pts = np.asarray(points, float)
+    s, e = pts[0::2], pts[1::2]
+    link = np.stack([(np.roll(e, 1, axis=0) + s) / 2, s, e, (e + np.roll(s, -1, axis=0)) / 2], 1)
+    centred = link - link.mean(axis=1, keepdims=True)
+    _, _, vt = np.linalg.svd(centred)
+    ext = np.ptp(np.einsum("pnk,pjk->pnj", centred, vt), axis=1)
+    return float(fit_factor(ext, printer).min())
