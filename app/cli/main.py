@@ -1,5 +1,5 @@
 """The ``paraloop`` command line: ``solve``, ``validate ...``, ``export``, ``animate``,
-``studio``.
+``simulate``, ``studio``.
 
 Every failure caused by the input prints one line ``error: <file>: <field>: <reason>`` on stderr;
 output paths are checked before any work starts, nothing is overwritten without ``--force`` and
@@ -21,6 +21,7 @@ from app import studio
 from app.cli import animate as animate_cmd
 from app.cli import batch, outputs, validate_evolution, validate_realization
 from app.cli import export as export_cmd
+from app.cli import simulate as simulate_cmd
 from app.cli.outputs import EXIT_INTERNAL, EXIT_NOT_REALIZED, EXIT_OK, EXIT_REFUSED
 from paraloop_core import design as design_mod
 from paraloop_core import pipeline
@@ -158,7 +159,7 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-_COMMAND_MODULES: list = [studio, export_cmd, animate_cmd]
+_COMMAND_MODULES: list = [studio, export_cmd, animate_cmd, simulate_cmd]
 _VALIDATE_MODULES: list = [validate_realization, validate_evolution]
 
 

@@ -1,0 +1,113 @@
+"""``paraloop simulate DESIGN.json [--out DIR]``: the physics check of the printed parts.
+
+Solves the design, makes its parts in memory as ``paraloop export`` does (the generic printer,
+the export's sizing, grounding and drive; the export's own verification over the cycle runs at
+its minimum of 8 samples: it does not change the parts, and the simulation checks contacts),
+builds the physics model (:func:`physics_assembly.model_from_assembly`) and runs one cycle
+(:func:`physics.simulate`): the base free on a table, or anchored (``--anchored``; also when
+the export has no grounding column, so nothing stands on the table). Prints one summary line;
+with ``--out``, writes ``physics.json`` (the report), ``paraloop.xml`` (MJCF) and the
+bodies' STLs (``link_<i>.stl``, mm, home pose) into DIR, all or nothing, checked before the
+solve. Exit status 0 when the check passes, 3 when it fails or no realization was found (files
+written), 2 on refused input, 1 on an internal error.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from app.cli import outputs
+from app.cli.export import solve_realized
+from app.cli.outputs import EXIT_NOT_REALIZED, EXIT_OK
+from paraloop_core import pipeline
+from paraloop_core.design import Design
+
+FIXED_NAMES = ("physics.json", "paraloop.xml")
+
+
+def check_out(out: Path, force: bool) -> None:
+    """Refuse an unusable ``--out`` before any work (OutputError)."""
+    outputs.check_dir_target(out, FIXED_NAMES, force)
+    if out.is_dir() and not force:
+        for old in sorted(out.glob("link_*.stl")):
+            raise outputs.OutputError(f"{old}: already exists (use --force to overwrite)")
+
+
+def run(design: Design, sol: pipeline.Solution, anchored: bool) -> tuple[dict, list]:
+    """``(physics.json content, files)`` of one design (module docstring)."""
+    # imported here: MuJoCo loads only for this command
+    from paraloop_core.fabrication import physics, physics_assembly, printable
+
+    res = printable.export_printable(
+        sol.realization, fixed=dict(design.realization.fixed),
+        alternatives=sol.other_loops(), drive=design.drive, effector=sol.end_effector,
+        samples=8)
+    asm, ground = res.assembly, res.report.get("grounding")
+    notes = list(res.report["warnings"])
+    if ground is None:  # no column: mounted by link 0 (as drive_mass takes it)
+        anchored = True
+        ground = {"link": 0, "ground_z_mm": min(p.manifold.bounding_box()[2] for p in asm.parts)}
+        notes.append("the parts have no grounding column: simulated mounted by link 0")
+    model = physics_assembly.model_from_assembly(asm, ground["link"], ground["ground_z_mm"],
+                                                 design.drive)
+    quasi = res.report["drive"].get("peak_torque_n_m")
+    rep = physics.simulate(model, quasi_static_peak_nm=quasi, anchored=anchored)
+    names = {b.name: f"{b.name}.stl" for b in model.bodies}
+    content = {**rep.to_dict(), "design": design.name,
+               "size_mm": res.report["sizing"]["size_mm"], "warnings": notes}
+    files = [("physics.json", (json.dumps(content, indent=1) + "\n").encode()),
+             ("paraloop.xml", physics.mjcf(model, names, timestep=rep.timestep,
+                                           anchored=anchored,
+                                           servo=(rep.servo_kp, rep.servo_kv)).encode())]
+    files += [(names[b.name], b.mesh.export(file_type="stl")) for b in model.bodies]
+    return content, files
+
+
+def summary(rep: dict) -> str:
+    """One line for people: verdict, run, loop, contacts, base, torques."""
+    base = "anchored" if rep["anchored"] else (
+        "stands" if rep["stands"] else "tips") + \
+        f" (tilt {rep['base_tilt_deg_max']:.1f} deg, lift {rep['base_lift_mm_max']:.2f} mm)"
+    quasi = rep["peak_torque_quasi_static_nm"]
+    return (f"physics {'ok' if rep['ok'] else 'FAILED'}: {rep['sim_seconds']:.1f} s cycle in "
+            f"{rep['wall_seconds']:.1f} s; loop {'followed' if rep['completed'] else 'LOST'} "
+            f"(pose error {rep['max_pose_error_mm']:.3g} mm, tolerance "
+            f"{rep['pose_tolerance_mm']:.3g}); non-adjacent contacts "
+            f"{rep['non_adjacent_contacts']}; base {base}; peak torque "
+            f"{rep['peak_torque_dynamic_nm']:.3g} N*m dynamic, "
+            + (f"{quasi:.3g} quasi-static" if quasi is not None else "quasi-static unknown"))
+
+
+def cmd_simulate(args: argparse.Namespace) -> int:
+    path = Path(args.design)
+    out = Path(args.out) if args.out else None
+    if out is not None:
+        check_out(out, args.force)
+    code, done = solve_realized(path, lambda design, sol: run(design, sol, args.anchored))
+    if done is None:
+        return code
+    rep, files = done
+    if out is not None:
+        outputs.write_files(out, files)
+    print(f"{path}{f' -> {out}' if out else ''}: {summary(rep)}")
+    for note in rep["warnings"]:
+        print(f"warning: {path}: {outputs.one_line(note)}", file=sys.stderr)
+    if rep["unchecked_bodies"]:
+        print(f"warning: {path}: contacts not checked for {', '.join(rep['unchecked_bodies'])} "
+              "(no convex pieces)", file=sys.stderr)
+    return EXIT_OK if rep["ok"] else EXIT_NOT_REALIZED
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``simulate`` sub-command."""
+    p = subparsers.add_parser("simulate", help="MuJoCo physics check of the printed parts")
+    p.add_argument("design", help="design JSON file")
+    p.add_argument("--out", default=None,
+                   help="output directory for physics.json, paraloop.xml (MJCF) and the STLs")
+    p.add_argument("--anchored", action="store_true",
+                   help="the base is fixed (mounted) instead of standing on a table")
+    p.add_argument("--force", action="store_true", help="overwrite existing files in --out")
+    p.set_defaults(func=cmd_simulate)

@@ -1,0 +1,393 @@
+"""Physics check of the printed mechanism with MuJoCo (issue 26, point 7).
+
+:func:`simulate` runs one cycle of a :class:`PhysicsModel` (the parts as rigid bodies with
+their masses, the hinges, gravity; :mod:`physics_model`) as :mod:`mjcf` describes it: the base
+free on a table (friction 1; or ``anchored``), the loop closed by two connect constraints on
+one hinge's axis, the motor hinge driven along the schedule. The run:
+
+1. *settle* (``settle_s``): the mechanism at home, the motor held at 0, so the base sinks into
+   its soft table contact and the loop takes up its weight; the base pose then is the
+   reference of tilt, lift and slide;
+2. *cycle*: the clock restarts at 0, every tree hinge gets the speed of the prediction at
+   time 0 (the schedule starts moving), and the motor follows ``motor_angle(t)`` (a cubic
+   spline of the samples) until the last sample time.
+
+**The motor** (:mod:`mjcf`): a feedforward torque (the rigid prediction,
+:func:`physics_model.rigid_dynamics`) plus a position and a velocity servo. The servos'
+gains (:func:`mjcf.servo_gains`) come from the least inertia the motor hinge sees in MuJoCo's
+model along the prediction (:func:`_least_inertia`: with a free base, the light base turning
+against the loop). The reported dynamic torque is the sum of the three actuator forces: what
+gravity, inertia, the constraints and a moving base ask of the motor. It is measured, not
+copied: with the feedforward set to zero the servos alone give the same torque (tests).
+
+**Checks** (:class:`PhysicsReport`):
+
+* ``completed``: no numerical blow-up, and at every sample time each link's pose relative to
+  the grounded link within ``pose_tolerance_mm`` = :data:`POSE_FRACTION` of the model's size
+  of the prediction (at the corners of the link's bounding box, so rotation errors count at
+  the part's extent). The simulation's own compliance (the soft closure magnified near
+  singular poses, the servo's lag) moved links by at most 0.01 mm on the five examples and
+  0.14 mm on the tests' pendulum (1/50 to 1/1000 of the tolerance); a loop that jams, falls
+  over, flips to another branch or comes apart moves them by a sizeable fraction of its size;
+* non-adjacent contacts: every contact MuJoCo finds between the convex pieces of bodies that
+  are neither one rigid group nor neighbouring links (the base is in the grounded link's
+  group, not its neighbours'), with the steps, first time and deepest penetration per pair;
+  bodies without convex pieces are listed as not checked;
+* the table: the moving parts' mesh hull vertices stay above it at every sample time;
+* ``stands``: the base tilts by at most :data:`TILT_LIMIT_DEG` and its lowest point rises by at
+  most :data:`LIFT_LIMIT_MM` from the settled pose;
+* the dynamic peak torque beside the rigid prediction's and the quasi-static one the caller
+  computed (gravity only).
+
+**Timestep and solver** (:data:`TIMESTEP`): 1 ms is the largest step at which MuJoCo keeps the
+closure's time constant of 2 ms (it refuses time constants under two steps); the servo's
+bandwidth ``0.25 / timestep`` is then 250 rad/s, far above the schedule's content, and half
+the closure's rate. Integrator ``Euler`` (semi-implicit; MuJoCo's implicit integrators open
+the closed loop, see :data:`mjcf.SERVO_STEP`), the default Newton solver (a few iterations for
+11 degrees of freedom). A 10 s cycle is 10 000 steps: 0.3 - 0.7 s of wall time anchored, 1 -
+3 s free on the table (the contacts), on one core.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import asdict, dataclass
+
+import mujoco
+import numpy as np
+from scipy.interpolate import CubicSpline
+
+from paraloop_core.errors import FabricationError
+from paraloop_core.fabrication import mjcf as mjcf_mod
+from paraloop_core.fabrication.drive_mass import GRAVITY_WORLD
+from paraloop_core.fabrication.mjcf import mjcf
+from paraloop_core.fabrication.physics_model import (
+    M_PER_MM,
+    Body,
+    Hinge,
+    PhysicsModel,
+    check_model,
+    hinge_angles,
+    mass_properties,
+    rigid_dynamics,
+    size_mm,
+)
+
+__all__ = ["Body", "Hinge", "PhysicsModel", "PhysicsReport", "simulate", "mjcf"]
+
+#: Default timestep (s), see the module docstring.
+TIMESTEP = 1e-3
+#: Pose tolerance as a fraction of the model's size (``completed``).
+POSE_FRACTION = 0.02
+#: The base tips when it tilts by more than this (deg) from its settled pose ...
+TILT_LIMIT_DEG = 2.0
+#: ... or when its lowest point rises by more than this (mm).
+LIFT_LIMIT_MM = 1.0
+#: Settling time (s) before the cycle.
+SETTLE_S = 0.2
+#: Samples of the torque curve in the report.
+CURVE_SAMPLES = 128
+
+
+@dataclass(frozen=True)
+class PhysicsReport:
+    """What :func:`simulate` found (module docstring); lengths mm, torques N m, times s."""
+
+    ok: bool
+    completed: bool
+    max_pose_error_mm: float
+    pose_tolerance_mm: float
+    max_motor_error_rad: float
+    max_closure_gap_mm: float
+    non_adjacent_contacts: int  # simulation steps with at least one
+    contact_pairs: tuple[dict, ...]  # per pair: bodies, steps, first_time_s, max_depth_mm
+    unchecked_bodies: tuple[str, ...]  # no convex pieces: contacts not checked
+    min_table_clearance_mm: float | None  # moving parts above the table (None: anchored)
+    stands: bool | None  # None: anchored
+    base_tilt_deg_max: float
+    base_lift_mm_max: float
+    base_slide_mm_max: float
+    peak_torque_dynamic_nm: float
+    peak_torque_quasi_static_nm: float | None  # as the caller computed it
+    peak_torque_rigid_nm: float  # rigid prediction (physics_model.rigid_dynamics)
+    torque_time_s: tuple[float, ...]
+    torque_nm: tuple[float, ...]
+    motor_joint: int
+    grounded_link: int
+    closure_joint: int
+    anchored: bool
+    timestep: float
+    steps: int
+    sim_seconds: float
+    wall_seconds: float
+    servo_kp: float
+    servo_kv: float
+    mujoco_warnings: tuple[str, ...]
+    method: str
+
+    def to_dict(self) -> dict:
+        """JSON-ready (non-finite numbers as None)."""
+        def clean(x):
+            if isinstance(x, dict):
+                return {k: clean(v) for k, v in x.items()}
+            if isinstance(x, (list, tuple)):
+                return [clean(v) for v in x]
+            if isinstance(x, (float, np.floating)):
+                return float(x) if math.isfinite(x) else None
+            if isinstance(x, (np.integer, np.bool_)):
+                return x.item()
+            return x
+
+        return clean(asdict(self))
+
+
+def simulate(model: PhysicsModel, *, timestep: float = TIMESTEP,
+             quasi_static_peak_nm: float | None = None, anchored: bool = False,
+             settle_s: float = SETTLE_S) -> PhysicsReport:
+    """Run one cycle of ``model`` (module docstring) and check it. ``anchored``: the base is
+    fixed in the world (a mounted loop; no table, no tipping check). Raises
+    :class:`FabricationError` (``bad-parameters``) for a malformed model or option."""
+    wall = time.perf_counter()
+    check_model(model)
+    limit = mjcf_mod.CLOSURE_SOLREF[0] / 2
+    if not (math.isfinite(timestep) and 0 < timestep <= limit):
+        raise FabricationError(f"timestep must be in (0, {limit:g}] s (the closure's time "
+                               f"constant is {2 * limit:g} s), got {timestep!r}",
+                               "bad-parameters")
+    if not (math.isfinite(settle_s) and settle_s >= 0):
+        raise FabricationError(f"settle_s must be >= 0, got {settle_s!r}", "bad-parameters")
+    # MuJoCo's warnings (a blow-up) go to the report, not to stdout and MUJOCO_LOG.TXT; the
+    # handler is process-wide, so it is restored at once
+    messages: list[str] = []
+    previous = mujoco.get_mju_user_warning()
+    mujoco.set_mju_user_warning(messages.append)
+    try:
+        return _simulate(model, timestep, quasi_static_peak_nm, anchored, settle_s, wall,
+                         messages)
+    finally:
+        mujoco.set_mju_user_warning(previous)
+
+
+def _simulate(model: PhysicsModel, timestep: float, quasi_static_peak_nm: float | None,
+              anchored: bool, settle_s: float, wall: float, messages: list[str]
+              ) -> PhysicsReport:
+    tree = mjcf_mod.tree(model)
+    times = np.asarray(model.time_s, float)
+    inertia, rigid, gravity = rigid_dynamics(model, GRAVITY_WORLD)
+    servo = mjcf_mod.servo_gains(float(inertia.min()), timestep)  # right when anchored
+    m = mujoco.MjModel.from_xml_string(mjcf(model, timestep=timestep, anchored=anchored,
+                                            servo=servo))
+    d = mujoco.MjData(m)
+    servo = mjcf_mod.servo_gains(min(float(inertia.min()), _least_inertia(m, d, model, tree)),
+                                 timestep)
+    m = mujoco.MjModel.from_xml_string(mjcf(model, timestep=timestep, anchored=anchored,
+                                            servo=servo))
+    d = mujoco.MjData(m)
+    ids = _Ids(m, model, tree)
+    ref = CubicSpline(times, hinge_angles(model), axis=0)
+    steps = int(math.ceil(times[-1] / timestep)) + 1
+    t_step = np.minimum(np.arange(steps) * timestep, times[-1])
+    ctrl = np.stack([np.interp(t_step, times, rigid), ref(t_step)[:, model.motor_joint],
+                     ref(t_step, 1)[:, model.motor_joint]], axis=1)
+
+    d.ctrl[:] = gravity[0], 0.0, 0.0  # hold the home pose
+    for _ in range(int(round(settle_s / timestep))):
+        mujoco.mj_step(m, d)
+    mujoco.mj_forward(m, d)
+    settled = (d.xpos[ids.root].copy(), d.xmat[ids.root].reshape(3, 3).copy())
+    d.time = 0.0
+    rates = ref(0.0, 1)
+    for joint, _ in tree.joint.values():
+        d.qvel[m.jnt_dofadr[m.joint(f"hinge_{joint}").id]] = rates[joint]
+    run = _run(m, d, ids, ctrl, steps)
+    return _report(model, tree, run, settled, ctrl[:, 1], anchored, timestep,
+                   quasi_static_peak_nm, float(np.abs(rigid).max()), servo, wall, messages)
+
+
+def _least_inertia(m: mujoco.MjModel, d: mujoco.MjData, model: PhysicsModel,
+                   tree: mjcf_mod.Tree, samples: int = 32) -> float:
+    """Least inertia (kg m^2) the motor hinge sees in MuJoCo's model at ``samples`` poses of
+    the prediction, the loop closed, the base (if free) in the air: ``1 / (P)_mm`` with ``P =
+    M^-1 - M^-1 J^T (J M^-1 J^T)^+ J M^-1`` (M the tree's mass matrix, J the closure's
+    Jacobian). With a free base the motor turns the light base against the loop, which the
+    rigid inertia (base still) overstates several-fold (tv8: 8.5x)."""
+    angles = hinge_angles(model)
+    dof = m.jnt_dofadr[m.joint(f"hinge_{model.motor_joint}").id]
+    least = np.inf
+    inv, eye = np.zeros((m.nv, m.nv)), np.eye(m.nv)
+    for k in np.linspace(0, len(angles) - 1, samples).astype(int):
+        d.qpos[:] = m.qpos0
+        for joint, _ in tree.joint.values():
+            d.qpos[m.jnt_qposadr[m.joint(f"hinge_{joint}").id]] = angles[k, joint]
+        mujoco.mj_forward(m, d)
+        mujoco.mj_solveM(m, d, inv, eye)  # M^-1 (symmetric)
+        eq = d.efc_type[:d.nefc] == mujoco.mjtConstraint.mjCNSTR_EQUALITY
+        jac = d.efc_J.reshape(d.nefc, m.nv)[eq]
+        proj = inv - inv @ jac.T @ np.linalg.pinv(jac @ inv @ jac.T, rcond=1e-10) @ jac @ inv
+        least = min(least, 1.0 / proj[dof, dof])
+    mujoco.mj_resetData(m, d)
+    return float(least)
+
+
+class _Ids:
+    """MuJoCo ids the run needs: each link's first body, the root, the motor's qpos address,
+    geom -> body name (-1: the table)."""
+
+    def __init__(self, m: mujoco.MjModel, model: PhysicsModel, tree: mjcf_mod.Tree):
+        self.link = np.array([m.body(tree.first[k]).id for k in range(6)])
+        self.root = m.body(tree.root).id
+        self.motor = m.jnt_qposadr[m.joint(f"hinge_{model.motor_joint}").id]
+        self.table = m.geom("table").id
+        self.geom_body = [m.body(int(b)).name for b in m.geom_bodyid]
+
+
+@dataclass
+class _Run:
+    xpos: np.ndarray  # (steps, 6, 3) m, each link's first body
+    xmat: np.ndarray  # (steps, 6, 3, 3)
+    root: np.ndarray  # (steps, 4, 4) root body, mm
+    torque: np.ndarray  # (steps,) N m
+    motor: np.ndarray  # (steps,) motor hinge angle, rad
+    contacts: dict  # (body a, body b) -> [steps, first step, max depth mm, last step]
+    touching: np.ndarray  # (steps,) bool: a non-adjacent contact at that step
+    done: int  # steps run (fewer on a blow-up)
+    diverged: bool
+
+
+def _run(m, d, ids: _Ids, ctrl: np.ndarray, steps: int) -> _Run:
+    """Step the cycle with the actuators' controls ``ctrl`` ``(steps, 3)``, recording the
+    state at the start of each step (what ``mj_step`` computes its forces and contacts
+    from)."""
+    xpos, xmat = np.zeros((steps, 6, 3)), np.zeros((steps, 6, 3, 3))
+    root, torque, motor = np.zeros((steps, 4, 4)), np.zeros(steps), np.zeros(steps)
+    contacts: dict = {}
+    touching = np.zeros(steps, bool)
+    bad = mujoco.mjtWarning.mjWARN_BADQACC
+    done = steps
+    for k in range(steps):
+        motor[k] = d.qpos[ids.motor]
+        d.ctrl[:] = ctrl[k]
+        mujoco.mj_step(m, d)
+        if d.warning[bad].number:
+            done = k
+            break
+        xpos[k], xmat[k] = d.xpos[ids.link], d.xmat[ids.link].reshape(6, 3, 3)
+        root[k, :3, :3] = d.xmat[ids.root].reshape(3, 3)
+        root[k, :3, 3] = d.xpos[ids.root] / M_PER_MM
+        torque[k] = d.actuator_force.sum()
+        for g, dist in zip(d.contact.geom[:d.ncon], d.contact.dist[:d.ncon], strict=True):
+            if ids.table in g:
+                continue
+            pair = tuple(sorted((ids.geom_body[g[0]], ids.geom_body[g[1]])))
+            touching[k] = True
+            rec = contacts.setdefault(pair, [0, k, 0.0, -1])
+            if rec[3] != k:  # count steps, not contact points
+                rec[0], rec[3] = rec[0] + 1, k
+            rec[2] = max(rec[2], -dist / M_PER_MM)
+    root[:, 3, 3] = 1.0
+    return _Run(xpos[:done], xmat[:done], root[:done], torque[:done], motor[:done], contacts,
+                touching[:done], done, done < steps)
+
+
+def _points(poses: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """``points`` ``(..., P, 3)`` moved by ``poses`` ``(..., 4, 4)`` (broadcast)."""
+    return np.einsum("...ij,...pj->...pi", poses[..., :3, :3], points) + poses[..., None, :3, 3]
+
+
+def _report(model: PhysicsModel, tree: mjcf_mod.Tree, run: _Run,
+            settled: tuple[np.ndarray, np.ndarray], target: np.ndarray, anchored: bool,
+            dt: float, quasi_static: float | None, rigid: float, gains: tuple[float, float],
+            wall: float, messages: list[str]) -> PhysicsReport:
+    n, g = run.done, model.grounded_link
+    tol = POSE_FRACTION * size_mm(model)
+    poses = np.zeros((n, 6, 4, 4))  # simulated T_world_link, mm
+    poses[..., :3, :3], poses[..., :3, 3], poses[..., 3, 3] = run.xmat, run.xpos / M_PER_MM, 1.0
+    corners = np.array([_corners([b for b in model.bodies if b.link == k]) for k in range(6)])
+    # pose error at the sample times reached, relative to the grounded link, the simulated
+    # points interpolated linearly between the steps around each sample time
+    times = np.asarray(model.time_s, float)
+    reached = times <= (n - 1) * dt  # none if the run blew up at once
+    k0 = np.minimum((times[reached] / dt).astype(int), max(n - 2, 0))
+    w = (times[reached] / dt - k0)[:, None, None, None]
+    sim = _points(np.linalg.inv(poses[:, g:g + 1]) @ poses, corners)
+    sim = (1 - w) * sim[k0] + w * sim[np.minimum(k0 + 1, n - 1)]
+    kin = np.asarray(model.link_poses, float)[reached]
+    kin = _points(np.linalg.inv(kin[:, g:g + 1]) @ kin, corners)
+    error = float(np.linalg.norm(sim - kin, axis=-1).max(initial=0.0))
+    if run.diverged:  # the links are lost (inf; None in JSON)
+        error = np.inf
+    completed = bool(reached.all()) and error <= tol
+    # closure: the two anchors as carried by both closure links
+    c = tree.closure
+    ends = [_points(poses[:, k], tree.anchors) for k in (c, (c + 1) % 6)]
+    closure = float(np.linalg.norm(ends[0] - ends[1], axis=-1).max(initial=0.0))
+    tilt, lift, slide, clearance, stands = 0.0, 0.0, 0.0, None, None
+    if not anchored:
+        tilt, lift, slide = _base_motion(model, run.root, settled)
+        stands = tilt <= TILT_LIMIT_DEG and lift <= LIFT_LIMIT_MM
+        clearance = _table_clearance(model, poses[np.round(times[reached] / dt).astype(int)])
+    pairs = tuple({"bodies": list(p), "steps": r[0], "first_time_s": r[1] * dt,
+                   "max_depth_mm": r[2]} for p, r in sorted(run.contacts.items()))
+    contacts = int(run.touching.sum())
+    curve_t = np.linspace(0.0, times[-1], CURVE_SAMPLES)
+    curve = np.interp(curve_t, np.arange(n) * dt, run.torque) if n else np.zeros(CURVE_SAMPLES)
+    ok = completed and contacts == 0 and (anchored or (bool(stands) and clearance >= 0.0))
+    return PhysicsReport(
+        ok=ok, completed=completed, max_pose_error_mm=error, pose_tolerance_mm=tol,
+        max_motor_error_rad=float(np.abs(run.motor - target[:n]).max(initial=0.0)),
+        max_closure_gap_mm=closure, non_adjacent_contacts=contacts, contact_pairs=pairs,
+        unchecked_bodies=tuple(b.name for b in model.bodies if not b.convex),
+        min_table_clearance_mm=clearance, stands=stands, base_tilt_deg_max=tilt,
+        base_lift_mm_max=lift, base_slide_mm_max=slide,
+        peak_torque_dynamic_nm=float(np.abs(run.torque).max(initial=0.0)),
+        peak_torque_quasi_static_nm=quasi_static, peak_torque_rigid_nm=rigid,
+        torque_time_s=tuple(np.round(curve_t, 6).tolist()),
+        torque_nm=tuple(float(f"{v:.6g}") for v in curve), motor_joint=model.motor_joint,
+        grounded_link=g, closure_joint=c, anchored=anchored, timestep=dt, steps=n,
+        sim_seconds=n * dt, wall_seconds=time.perf_counter() - wall, servo_kp=float(gains[0]),
+        servo_kv=float(gains[1]), mujoco_warnings=tuple(messages), method=METHOD)
+
+
+def _corners(bodies: list[Body]) -> np.ndarray:
+    """The 8 corners ``(8, 3)`` (mm, home) of the bounding box of ``bodies``' meshes."""
+    box = np.array([b.mesh.bounds for b in bodies])
+    lo, hi = box[:, 0].min(axis=0), box[:, 1].max(axis=0)
+    return np.array([[(lo, hi)[i >> k & 1][k] for k in range(3)] for i in range(8)])
+
+
+def _base_motion(model: PhysicsModel, root: np.ndarray, settled: tuple[np.ndarray, np.ndarray]
+                 ) -> tuple[float, float, float]:
+    """Largest tilt (deg), rise of the lowest point and horizontal slide of the base group's
+    centre of mass (mm) relative to the settled pose."""
+    ref = np.eye(4)
+    ref[:3, :3], ref[:3, 3] = settled[1], settled[0] / M_PER_MM
+    rel = np.linalg.inv(ref) @ root
+    cos = np.clip(0.5 * (np.trace(rel[:, :3, :3], axis1=1, axis2=2) - 1.0), -1.0, 1.0)
+    tilt = float(np.degrees(np.arccos(cos)).max(initial=0.0))
+    base = [b for b in model.bodies if b.link in (-1, model.grounded_link)]
+    hull = np.concatenate([b.mesh.convex_hull.vertices for b in base])
+    low = _points(root, hull)[..., 2].min(axis=-1) - _points(ref, hull)[:, 2].min()
+    masses = np.array([b.mass_kg for b in base])
+    com = masses @ np.array([mass_properties(b)[0] for b in base]) / masses.sum()
+    slide = _points(root, com[None])[:, 0, :2] - _points(ref, com[None])[0, :2]
+    return tilt, float(low.max(initial=0.0)), float(np.linalg.norm(slide, axis=-1).max(initial=0.0))
+
+
+def _table_clearance(model: PhysicsModel, poses: np.ndarray) -> float:
+    """Least height (mm) of the moving bodies' hull vertices above the table with the links
+    at ``poses`` ``(T, 6, 4, 4)`` (mm; inf if none)."""
+    low = np.inf
+    for b in model.bodies:
+        if b.link not in (-1, model.grounded_link):
+            z = _points(poses[:, b.link], b.mesh.convex_hull.vertices)[..., 2]
+            low = min(low, float(z.min(initial=np.inf)))
+    return low - model.table_z_mm
+
+
+METHOD = ("MuJoCo forward simulation of the parts as rigid bodies (masses, inertia from the "
+          "meshes at uniform density), hinges on the joint axes, the loop closed by two connect "
+          "constraints on one hinge's axis, gravity -z, the base free on a table with friction "
+          "1 (unless anchored), the motor hinge position- and velocity-servoed along the "
+          "schedule; torque = the servo's force; pose error relative to the grounded link at "
+          "the corners of each link's bounding box")
