@@ -132,9 +132,11 @@ def make(sol: Solution, opts: Options | None = None, progress: Progress | None =
 
 
 def export(sol: Solution, opts: Options | None = None, *, rhino: bool = False,
-           progress: Progress | None = None) -> tuple[list[tuple[str, bytes]], dict, Solution]:
+           simulate: bool = False, progress: Progress | None = None
+           ) -> tuple[list[tuple[str, bytes]], dict, Solution]:
     """The export folder's files (``paraloop export``, the studio's *Export all*), the report
-    and the printed loop's solution."""
+    and the printed loop's solution; ``simulate``: with the physics check
+    (:func:`physics_check`: report ``physics``, the MJCF and its meshes)."""
     import json
 
     opts = opts or Options()
@@ -149,6 +151,11 @@ def export(sol: Solution, opts: Options | None = None, *, rhino: bool = False,
     glb, how = animation(printed, sol.design.drive)
     files.append(("animation.glb", glb))
     report["animation"] = f"animation.glb: the printed parts through one cycle, {how}"
+    if simulate:
+        if progress is not None:
+            progress(0.97, "physics check (MuJoCo)")
+        report["physics"], more = physics_check(printed, opts, sol.design.drive)
+        files += more
     result = json.dumps(result_to_dict(chosen), indent=1, allow_nan=False) + "\n"
     files.append(("result.json", result.encode()))
     files.append(("report.json", export_files.report_json(report)))
@@ -184,3 +191,24 @@ def animation(printed: Printed, settings: DriveSettings, frames: int = 240,
                                frames=frames, seconds=seconds or plan.cycle_time_s, t=t,
                                meshes=meshes, resting=g, world=world, unit="millimetres")
     return glb, how
+
+
+def physics_check(printed: Printed, opts: Options, settings: DriveSettings
+                  ) -> tuple[dict, list[tuple[str, bytes]]]:
+    """``(report, files)``: one cycle of the printed parts in MuJoCo
+    (:mod:`fabrication.physics`): standing free on a table when there is a base (anchored
+    otherwise), the design's drive, the quasi-static torque beside the dynamic one; the files
+    are ``paraloop.xml`` (MJCF) and the bodies' meshes ``physics_<body>.stl`` (standing world
+    frame, mm) it refers to."""
+    from paraloop_core.fabrication import physics, physics_assembly  # MuJoCo loads here
+
+    model = physics_assembly.model_from_assembly(printed.assembly, opts.material, settings)
+    anchored = printed.base is None
+    quasi = printed.report["drive"].get("peak_torque_n_m")
+    rep = physics.simulate(model, quasi_static_peak_nm=quasi, anchored=anchored)
+    names = {b.name: f"physics_{b.name}.stl" for b in model.bodies}
+    xml = physics.mjcf(model, names, timestep=rep.timestep, anchored=anchored,
+                       servo=(rep.servo_kp, rep.servo_kv))
+    files = [("paraloop.xml", xml.encode())]
+    files += [(names[b.name], b.mesh.export(file_type="stl")) for b in model.bodies]
+    return rep.to_dict(), files

@@ -34,7 +34,7 @@ from paraloop_core.fabrication import drive_mass, printable, profiles, rhino
 FIXED_NAMES = ("paraloop.3mf", "assembly.glb", "animation.glb", "report.json", "result.json",
                "assembly.md", "assembly.html", "paraloop.3dm", "base_plate.stl", "paraloop.xml")
 NUMBERED = ("link_*.stl", "pin_*.stl", "pin_cap_*.stl", "rod_cap_*.stl", "paraloop_plate*.3mf",
-            "guide_*.png")
+            "guide_*.png", "physics_*.stl")
 T = TypeVar("T")
 
 
@@ -83,7 +83,8 @@ def cmd_export(args: argparse.Namespace) -> int:
         print(f"error: {path}: {outputs.one_line(exc)}", file=sys.stderr)
         return EXIT_REFUSED
     code, result = solve_realized(path, lambda design, sol: printed.export(
-        sol, opts, rhino=args.rhino, progress=None if args.quiet else _print_progress))
+        sol, opts, rhino=args.rhino, simulate=args.simulate,
+        progress=None if args.quiet else _print_progress))
     if result is None:
         return code
     files, report, _ = result
@@ -93,6 +94,14 @@ def cmd_export(args: argparse.Namespace) -> int:
     print(f"{path} -> {out}: {len(files)} files; {summary_line(report)}")
     print(f"{path}: {report['choice']['note']}")
     print(f"{path}: {drive_mass.drive_line(report['drive'])}")
+    if "physics" in report:
+        from app.cli.simulate import summary  # simulate's module imports this one
+
+        print(f"{path}: {summary(report['physics'])}")
+        if not report["physics"]["ok"]:
+            print(f"error: {path}: the physics check failed (see {out / 'report.json'})",
+                  file=sys.stderr)
+            return EXIT_NOT_REALIZED
     if not report["verification"]["ok"]:
         print(f"error: {path}: verification failed (see {out / 'report.json'})", file=sys.stderr)
         return EXIT_NOT_REALIZED
@@ -170,6 +179,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="no grounding rod and base plate (the loop is held by hand)")
     p.add_argument("--samples", type=outputs.int_range(8, 100_000), default=720,
                    help="verification samples over the cycle (8..100000)")
+    p.add_argument("--simulate", action="store_true",
+                   help="also run the physics check (MuJoCo): the parts standing on their base "
+                        "through one cycle; writes paraloop.xml (MJCF) and its meshes")
     p.add_argument("--3dm", dest="rhino", action="store_true",
                    help="also write paraloop.3dm (Rhino; needs the rhino3dm package)")
     p.add_argument("--quiet", action="store_true", help="no progress lines")

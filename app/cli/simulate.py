@@ -1,15 +1,14 @@
 """``paraloop simulate DESIGN.json [--out DIR]``: the physics check of the printed parts.
 
-Solves the design, makes its parts in memory as ``paraloop export`` does (the generic printer,
-the export's sizing, grounding and drive; the export's own verification over the cycle runs at
-its minimum of 8 samples: it does not change the parts, and the simulation checks contacts),
-builds the physics model (:func:`physics_assembly.model_from_assembly`) and runs one cycle
-(:func:`physics.simulate`): the base free on a table, or anchored (``--anchored``; also when
-the export has no grounding column, so nothing stands on the table). Prints one summary line;
-with ``--out``, writes ``physics.json`` (the report), ``paraloop.xml`` (MJCF) and the
-bodies' STLs (``link_<i>.stl``, mm, home pose) into DIR, all or nothing, checked before the
-solve. Exit status 0 when the check passes, 3 when it fails or no realization was found (files
-written), 2 on refused input, 1 on an internal error.
+Solves the design, makes its printed loop in memory as ``paraloop export`` does (the generic
+printer; the export's own verification over the cycle runs at its minimum of 8 samples: it
+does not change the parts, and the simulation checks contacts) and runs one cycle
+(:func:`printed.physics_check`): standing free on its base on a table, or anchored
+(``--anchored``; also when there is no base). Prints one summary line; with ``--out``, writes
+``physics.json`` (the report), ``paraloop.xml`` (MJCF) and the bodies' meshes
+``physics_<body>.stl`` (mm, the standing sculpture's frame) into DIR, all or nothing, checked
+before the solve. Exit status 0 when the check passes, 3 when it fails or no realization was
+found (files written), 2 on refused input, 1 on an internal error.
 """
 
 from __future__ import annotations
@@ -17,53 +16,41 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 from app.cli import outputs
 from app.cli.export import solve_realized
 from app.cli.outputs import EXIT_NOT_REALIZED, EXIT_OK
-from paraloop_core import pipeline
+from paraloop_core import pipeline, printed
 from paraloop_core.design import Design
+from paraloop_core.fabrication import printable
 
 FIXED_NAMES = ("physics.json", "paraloop.xml")
+NUMBERED = "physics_*.stl"
 
 
 def check_out(out: Path, force: bool) -> None:
     """Refuse an unusable ``--out`` before any work (OutputError)."""
     outputs.check_dir_target(out, FIXED_NAMES, force)
     if out.is_dir() and not force:
-        for old in sorted(out.glob("link_*.stl")):
+        for old in sorted(out.glob(NUMBERED)):
             raise outputs.OutputError(f"{old}: already exists (use --force to overwrite)")
 
 
 def run(design: Design, sol: pipeline.Solution, anchored: bool) -> tuple[dict, list]:
     """``(physics.json content, files)`` of one design (module docstring)."""
-    # imported here: MuJoCo loads only for this command
-    from paraloop_core.fabrication import physics, physics_assembly, printable
-
-    res = printable.export_printable(
-        sol.realization, fixed=dict(design.realization.fixed),
-        alternatives=sol.other_loops(), drive=design.drive, effector=sol.end_effector,
-        samples=8)
-    asm, ground = res.assembly, res.report.get("grounding")
-    notes = list(res.report["warnings"])
-    if ground is None:  # no column: mounted by link 0 (as drive_mass takes it)
-        anchored = True
-        ground = {"link": 0, "ground_z_mm": min(p.manifold.bounding_box()[2] for p in asm.parts)}
-        notes.append("the parts have no grounding column: simulated mounted by link 0")
-    model = physics_assembly.model_from_assembly(asm, ground["link"], ground["ground_z_mm"],
-                                                 design.drive)
-    quasi = res.report["drive"].get("peak_torque_n_m")
-    rep = physics.simulate(model, quasi_static_peak_nm=quasi, anchored=anchored)
-    names = {b.name: f"{b.name}.stl" for b in model.bodies}
-    content = {**rep.to_dict(), "design": design.name,
-               "size_mm": res.report["sizing"]["size_mm"], "warnings": notes}
-    files = [("physics.json", (json.dumps(content, indent=1) + "\n").encode()),
-             ("paraloop.xml", physics.mjcf(model, names, timestep=rep.timestep,
-                                           anchored=anchored,
-                                           servo=(rep.servo_kp, rep.servo_kv)).encode())]
-    files += [(names[b.name], b.mesh.export(file_type="stl")) for b in model.bodies]
-    return content, files
+    made, _ = printed.make(sol, printable.Options(samples=8))
+    opts = printable.Options()
+    if anchored and made.base is not None:
+        made = replace(made, base=None)  # the base fixed in the world: mounted
+    content, files = printed.physics_check(made, opts, design.drive)
+    content = {**content, "design": design.name, "size_mm": made.report["sizing"]["size_mm"],
+               "warnings": list(made.report["warnings"]) + (
+                   [] if made.base is not None or anchored else
+                   ["the parts have no base: simulated mounted by their resting link"])}
+    return content, [("physics.json", (json.dumps(content, indent=1) + "\n").encode()),
+                     *files]
 
 
 def summary(rep: dict) -> str:

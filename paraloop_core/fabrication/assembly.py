@@ -158,7 +158,7 @@ def relay(asm: Assembly, j: int, joint: Joint) -> Assembly:
         new_parts[i], slack[i] = _link(asm.plan, i, asm.bars[i], layouts, asm.printer,
                                        asm.extras, down)
         parts.check_solid(new_parts[i].manifold, new_parts[i].name)
-    others = [p for p in asm.parts[6:] if not (p.role in ("pin", "cap") and p.link == j)]
+    others = [p for p in asm.parts[6:] if not (p.role in ("pin", "cap") and p.joint[0] == j)]
     pieces = [p for p in parts.piece_parts((joint,))]
     hardware = tuple(h for h in asm.hardware if h.joint != j) + hardware_of((joint,))
     plan = replace(asm.plan, layouts=layouts)

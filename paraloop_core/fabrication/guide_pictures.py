@@ -295,7 +295,7 @@ def _groups(asm: Assembly, jt, meshes: dict, world: np.ndarray
     def _tm(solid) -> trimesh.Trimesh:
         return part_trimesh(solid).apply_transform(world)
 
-    printed = [p for p in asm.parts if p.link == jt.index and p.role in ("pin", "cap")]
+    printed = [p for p in asm.parts if p.role in ("pin", "cap") and p.joint[0] == jt.index]
     near = [Piece(f"link {a}", meshes[f"link_{a}"], _rgb(LINK_COLORS[a]), alpha=0.45)]
     far = [Piece(f"link {b}", meshes[f"link_{b}"], _rgb(LINK_COLORS[b]), alpha=0.45)]
     groups: list[tuple[list[Piece], float]] = [(near, 0.0), (far, pull)]

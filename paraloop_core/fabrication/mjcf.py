@@ -37,9 +37,9 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
-from paraloop_core.fabrication.drive_mass import GRAVITY_WORLD
 from paraloop_core.fabrication.export import LINK_COLORS
 from paraloop_core.fabrication.physics_model import (
+    GRAVITY_WORLD,
     M_PER_MM,
     Body,
     PhysicsModel,

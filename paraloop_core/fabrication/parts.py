@@ -222,8 +222,8 @@ def piece_solid(j: Joint, p: profiles.Fastener | object) -> m3d.Manifold:
 
 
 def piece_parts(joints: tuple[Joint, ...]) -> list[Part]:
-    """The separately printed pieces (printed pins, pin caps, rod caps) as parts, each with
-    its joint's lower link (it turns about the joint's axis: the same to either link)."""
+    """The separately printed pieces (printed pins, pin caps, rod caps) as parts (module
+    docstring of the loop below for the link each moves with)."""
     out = []
     for j in joints:
         for k, p in enumerate(q for q in j.pieces if q.printed):
@@ -235,10 +235,13 @@ def piece_parts(joints: tuple[Joint, ...]) -> list[Part]:
                 solid = solid - _axis(j, max(p.s0, axle.s0) - EPS_MM,
                                       min(p.s1, axle.s1) + EPS_MM, hole)
             name = f"{p.role.replace(' ', '_')}_{j.index}" + (f"_{k}" if k > 1 else "")
+            # a rod cap is glued on the rod: rigid with the grounded link; the others turn
+            # about the axis with either link (the lower one, by convention)
+            link = (j.index + (j.rod_side or 0)) % 6 if p.role == "rod cap" else j.index
             # a cap prints on its closed end, the hole up; a pin on its side (export)
             beyond = p.s0 >= j.length / 2
             down = np.asarray(j.w, float) * (1.0 if beyond else -1.0)
-            out.append(Part(name, j.index, solid, np.array([[j.at(p.s0), j.at(p.s1)]]),
+            out.append(Part(name, link, solid, np.array([[j.at(p.s0), j.at(p.s1)]]),
                             np.array([p.radius]), np.array([j.index]), down,
                             p.role.split()[-1]))
     return out

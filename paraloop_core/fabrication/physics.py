@@ -60,9 +60,9 @@ from scipy.interpolate import CubicSpline
 
 from paraloop_core.errors import FabricationError
 from paraloop_core.fabrication import mjcf as mjcf_mod
-from paraloop_core.fabrication.drive_mass import GRAVITY_WORLD
 from paraloop_core.fabrication.mjcf import mjcf
 from paraloop_core.fabrication.physics_model import (
+    GRAVITY_WORLD,
     M_PER_MM,
     Body,
     Hinge,

@@ -1,15 +1,17 @@
-"""A :class:`physics_model.PhysicsModel` of an exported :class:`parts.Assembly`.
+"""A :class:`physics_model.PhysicsModel` of a printed loop (:class:`assembly.Assembly`).
 
-One body per part (its link; the grounding column and foot are in the grounded link's part,
-so there is no separate base body), its mass the mesh volume times the density. Convex pieces:
-each part lies in the union of its bounding capsules (``Part.capsules``, ``Part.radii``), so
-their hulls, cut at the table plane (the parts are above it at home), are convex pieces that
-contain the part: collisions between them are conservative (a contact may be reported where
-the parts keep a gap smaller than the capsules' excess). Hinges: the loop's joint axes in mm
-through the middle of each pin, oriented so that each angle grows over the cycle. The drive:
-the design's drive plan (:func:`drive_plan.plan_drive`) with the grounded link resting, its
-motor turned by the speed schedule (at constant speed where no schedule meets the limits),
-sampled at equal times.
+The world is the sculpture standing on its table (``Base.world_from_home``; without a base,
+the design's frame with the table under the lowest part). One body per printed part and per
+piece of hardware: links with their printed pieces (caps, pins) and screws, nuts and washers
+(on their joint's lower link: a piece about a joint axis is the same to either link); the rod
+with the grounded link it is glued into; the base plate is the base (link -1), fixed to the
+grounded link. Masses: mesh volume x
+density (print material, steel for hardware). Convex pieces for collisions: each part lies in
+the union of its capsules, whose hulls (cut at the table plane) contain it, so the contacts
+found are conservative (a contact may be reported where the parts keep a gap smaller than the
+capsules' excess). Hinges: the joint axes through the bosses' split, oriented so that each
+angle grows over the cycle. The drive: the design's drive plan with the grounded link resting,
+its motor turned by the speed schedule (at constant speed where no schedule meets the limits).
 """
 
 from __future__ import annotations
@@ -21,39 +23,56 @@ import trimesh
 
 from paraloop_core.algebra import dq
 from paraloop_core.design import DriveSettings
-from paraloop_core.fabrication import animate
-from paraloop_core.fabrication.export import part_trimesh
-from paraloop_core.fabrication.parts import Assembly, Part
+from paraloop_core.fabrication import animate, profiles
+from paraloop_core.fabrication.assembly import Assembly
+from paraloop_core.fabrication.check import part_trimesh
 from paraloop_core.fabrication.physics_model import Body, Hinge, PhysicsModel, hinge_angles
 from paraloop_core.linkage import drive_plan, loops
 
 #: Samples of the cycle in the prediction (the pose check and the motor's reference).
 SAMPLES = 601
-#: Subdivisions of the icosphere whose points, at both ends, make a capsule's hull.
+#: The icosphere whose points, at both ends, make a capsule's hull.
 _SPHERE = trimesh.creation.icosphere(subdivisions=1).vertices
 
 
-def model_from_assembly(asm: Assembly, grounded_link: int, table_z_mm: float,
+def world_of(asm: Assembly) -> tuple[np.ndarray, int]:
+    """``(T_world_home (4, 4), grounded link)``: standing on the base, or (no base) link 0
+    resting with the table under the lowest part."""
+    if asm.base is not None:
+        return asm.base.world_from_home(), asm.base.link
+    m = np.eye(4)
+    m[2, 3] = -min(p.manifold.bounding_box()[2] for p in asm.parts)
+    return m, 0
+
+
+def model_from_assembly(asm: Assembly, material: profiles.Material,
                         drive: DriveSettings | None = None, samples: int = SAMPLES
                         ) -> PhysicsModel:
-    """The physics model of ``asm`` (module docstring): ``grounded_link`` resting with the
-    table at ``table_z_mm`` (the foot's underside, ``report["grounding"]["ground_z_mm"]``),
-    the ``drive`` settings' motor, cycle and density (None: the defaults)."""
+    """The physics model of ``asm`` (module docstring) printed in ``material``, driven by the
+    ``drive`` settings' motor and cycle (None: the defaults)."""
     drive = DriveSettings() if drive is None else drive
+    world, g = world_of(asm)
     jf = asm.joint_factors
-    plan = drive_plan.plan_drive(jf, drive, resting_link=grounded_link)
+    plan = drive_plan.plan_drive(jf, drive, resting_link=g)
     if plan.schedule is not None:
         t = animate.scheduled_parameters(jf, plan.schedule, samples)
     else:
         t = animate.motor_parameters(jf, plan.motor, np.linspace(0.0, 2 * np.pi, samples))
-    poses = dq.to_matrix(loops.link_poses(jf, t))  # relative to link 0, design units
-    poses = np.linalg.inv(poses[:, grounded_link:grounded_link + 1]) @ poses
+    poses = dq.to_matrix(loops.link_poses(jf, t))
+    poses = np.linalg.inv(poses[:, g:g + 1]) @ poses  # the grounded link still
     poses[..., :3, 3] *= asm.scale
-    axes = loops.factor_axes(jf)
-    # the point: the middle of the pin E_i S_{i+1} (on the axis, between the two links)
-    hinges = tuple(Hinge(i, z.at(0.5 * z.length), axes[i, :3]) for i, z in enumerate(asm.zones))
-    bodies = tuple(_body(p, drive.density_kg_m3, table_z_mm) for p in asm.parts)
-    model = PhysicsModel(bodies, hinges, grounded_link, float(table_z_mm), plan.motor,
+    poses = world @ poses @ np.linalg.inv(world)  # T_world_link for meshes in the world
+    rot = world[:3, :3]
+    hinges = tuple(Hinge(j.index, rot @ j.at(j.split) + world[:3, 3], rot @ j.w)
+                   for j in asm.joints)
+    rho = material.density_g_cm3
+    bodies = [_body(p.name, -1 if p.role == "base" else p.link, p.manifold, p.capsules,
+                    p.radii, rho, world) for p in asm.parts]
+    bodies += [_body(f"{h.role.replace(' ', '_')}_{h.joint}_{k}", h.link, h.solid,
+                     h.capsule[None],
+                     np.array([h.radius]), profiles.STEEL_G_CM3, world)
+               for k, h in enumerate(asm.hardware)]
+    model = PhysicsModel(tuple(bodies), hinges, g, 0.0, plan.motor,
                          np.linspace(0.0, plan.cycle_time_s, samples), np.zeros(samples), poses)
     turn = hinge_angles(model)[-1]  # each joint turns once: +-2 pi
     hinges = tuple(replace(h, axis=h.axis * np.sign(turn[h.joint])) for h in hinges)
@@ -61,16 +80,18 @@ def model_from_assembly(asm: Assembly, grounded_link: int, table_z_mm: float,
     return replace(model, motor_angle=hinge_angles(model)[:, plan.motor])
 
 
-def _body(part: Part, density_kg_m3: float, table_z_mm: float) -> Body:
-    mesh = part_trimesh(part)
+def _body(name: str, link: int, solid, capsules: np.ndarray, radii: np.ndarray,
+          density_g_cm3: float, world: np.ndarray) -> Body:
+    mesh = part_trimesh(solid).apply_transform(world)
+    caps = np.einsum("ij,nkj->nki", world[:3, :3], capsules) + world[:3, 3]
     pieces = []
-    for (p0, p1), r in zip(part.capsules, part.radii, strict=True):
+    for (p0, p1), r in zip(caps, radii, strict=True):
         hull = trimesh.convex.convex_hull(np.concatenate([p0 + r * _SPHERE, p1 + r * _SPHERE]))
-        if hull.bounds[0, 2] < table_z_mm:
-            hull = _above(hull, table_z_mm)
+        if hull.bounds[0, 2] < 0.0:
+            hull = _above(hull, 0.0)
         if hull is not None:
             pieces.append(hull)
-    return Body(part.name, part.link, mesh, mesh.volume * 1e-9 * density_kg_m3, tuple(pieces))
+    return Body(name, link, mesh, mesh.volume * 1e-6 * density_g_cm3, tuple(pieces))
 
 
 def _above(hull: trimesh.Trimesh, z: float) -> trimesh.Trimesh | None:

@@ -28,6 +28,8 @@ from paraloop_core.errors import FabricationError
 M_PER_MM = 1e-3
 #: Body names (they name MJCF bodies, geoms and meshes).
 NAME = re.compile(r"[A-Za-z0-9_.-]+")
+#: Gravity (m/s^2) in the world: the sculpture standing on its table, z up.
+GRAVITY_WORLD = np.array([0.0, 0.0, -9.81])
 #: Relative (to the model's size) and absolute (rad) slack of :func:`check_model`'s
 #: consistency checks: float64 link poses agree to ~1e-12; 1e-6 leaves room for poses built
 #: from rounded data without letting a wrong axis or sign through.
