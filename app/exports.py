@@ -109,7 +109,7 @@ def options_of(fab: FabSettings) -> printable.Options:
     """The export options of the panel's settings (size 0: automatic)."""
     return printable.Options(printer=printer_of(fab), size_mm=fab.size_mm or None,
                              ground=fab.ground,
-                             joints="print-in-place" if fab.print_in_place else "m3")
+                             joints="print-in-place" if fab.print_in_place else "auto")
 
 
 def size_of(sol: pipeline.Solution, fab: FabSettings) -> float:

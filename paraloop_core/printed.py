@@ -32,11 +32,11 @@ from paraloop_core.result import result_to_dict
 #: Pin lengths (the offset d) of the candidates as shares of the loop's extent, best first:
 #: about 20 mm at a desk size, room for the screw's head and nut recesses and two diameters
 #: of hold in each boss.
-PIN_FRACTIONS = (0.075, 0.095, 0.06)
+PIN_FRACTIONS = (0.075, 0.095, 0.06, 0.045)
 #: Bar radius of the realization search as a share of the offset d: the certified gaps.
 RHO_FRACTIONS = (0.5, 0.35)
 #: Work budget of each candidate search (:meth:`realize.Search.work`).
-WORK = 40_000
+WORK = 10_000
 Progress = Callable[[float, str], None]
 
 
@@ -66,7 +66,14 @@ def realize_variant(sol: Solution, loop: int, d_fraction: float, rho_fraction: f
     params = dict(p=rs.p, d_fraction=d_fraction, rho_fraction=rho_fraction,
                   fixed=dict(rs.fixed), max_k=rs.max_k, in_unit=in_unit, budget=budget)
     if sol.design.end_effector is None:
-        real, ee = realize.realize(jf, **params), None
+        real = None
+        if loop == sol.design.loop and sol.realization is not None:
+            # the design's own pattern (shifts, offsets) with the roomier offset and bars
+            # first: one certificate instead of a search, where it holds
+            real = realize.Search(jf, dict(rs.fixed), in_unit).run_hint(
+                sol.realization.shifts, sol.realization.offsets, p=rs.p, rho=None, d=None,
+                d_fraction=d_fraction, rho_fraction=rho_fraction, max_k=rs.max_k)
+        real, ee = (real if real is not None else realize.realize(jf, **params)), None
     else:
         from paraloop_core.realization import realize_ee
 
@@ -91,7 +98,8 @@ def candidates(sol: Solution, printer: printable.Printer, made: list[Solution]
     order = [(mine, PIN_FRACTIONS[0], RHO_FRACTIONS[0]), (mine, PIN_FRACTIONS[0],
                                                            RHO_FRACTIONS[1]),
              (mine, PIN_FRACTIONS[1], RHO_FRACTIONS[1]), (mine, PIN_FRACTIONS[2],
-                                                           RHO_FRACTIONS[1])]
+                                                           RHO_FRACTIONS[1]),
+             (mine, PIN_FRACTIONS[3], RHO_FRACTIONS[0])]
     order += [(i, PIN_FRACTIONS[0], RHO_FRACTIONS[1]) for i in others]
     for loop, pin, rf in order:
         d_fraction = pin * ext / length

@@ -114,8 +114,8 @@ def summary_line(report: dict) -> str:
     widths = sz["bar_width_mm"]
     mass = sum(p["mass_g"] for p in report["parts"])
     joint = report["joints"][0]
-    hardware = {"m3": "M3 screws", "m4": "M4 screws", "printed-pin": "printed pins"}.get(
-        joint["kind"], joint["kind"])
+    hardware = {"m2": "M2 screws", "m3": "M3 screws", "m4": "M4 screws",
+                "printed-pin": "printed pins"}.get(joint["kind"], joint["kind"])
     base = "no base" if b is None else (
         f"stands on a {b['plate_diameter_mm']:.0f} mm plate" if b["stands"]
         else "base to screw down")
@@ -169,10 +169,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="clearance of moving printed faces in mm (default: the printer's)")
     p.add_argument("--material", choices=sorted(profiles.MATERIALS), default="pla",
                    help="print material (density, stiffness; default pla)")
-    p.add_argument("--joints", choices=profiles.JOINT_KINDS, default="m3",
-                   help="m3/m4: screw and lock nut through both links (default m3); "
-                        "printed-pin: printed pin and pressed-on cap; print-in-place: "
-                        "refused for spatial loops, with the reason")
+    p.add_argument("--joints", choices=profiles.JOINT_KINDS, default="auto",
+                   help="auto (default): M3 screws, M2 where M3 does not fit; m2/m3/m4: "
+                        "screw and lock nut through both links; printed-pin: printed pin and "
+                        "pressed-on cap; print-in-place: refused for spatial loops, with the "
+                        "reason")
     p.add_argument("--rod", choices=sorted(profiles.RODS), default=profiles.DEFAULT_ROD.name,
                    help="the grounding rod (also the grounded joint's axle)")
     p.add_argument("--no-base", action="store_true",

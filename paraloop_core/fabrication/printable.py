@@ -49,7 +49,7 @@ from paraloop_core.realization.certified import Realization
 Progress = Callable[[float, str], None]
 #: Most candidate realizations sized before the best so far is taken, and grounding rods tried
 #: (best first) until one leaves both its links flat on the bed.
-MAX_CANDIDATES = 10
+MAX_CANDIDATES = 12
 GROUND_TRIES = 4
 
 
@@ -117,7 +117,36 @@ def predicted_fit(plan: sizing.Plan, points: np.ndarray, printer: Printer) -> fl
 
 
 def _score(plan: sizing.Plan) -> tuple:
-    return (-plan.level, round(plan.size_mm, 0), float(plan.radii.min()))
+    kinds = profiles.AUTO_JOINTS
+    rank = -kinds.index(kind_of(plan)) if kind_of(plan) in kinds else 0
+    return (-plan.level, rank, round(plan.size_mm, 0), float(plan.radii.min()))
+
+
+def kind_of(plan: sizing.Plan) -> str:
+    """The joint kind a plan's joints are laid out for."""
+    return plan.layouts[0].kind
+
+
+def _plan(real: Realization, opts: Options, size_mm: float | None = None) -> sizing.Plan:
+    """:func:`sizing.plan` with the options' joints (``auto``: :data:`profiles.AUTO_JOINTS`
+    in turn, the first that reaches the best level); ``size_mm`` overrides the options'."""
+    kinds = profiles.AUTO_JOINTS if opts.joints == "auto" else (opts.joints,)
+    best, error = None, None
+    for kind in kinds:
+        try:
+            p = sizing.plan(real, opts.printer, opts.material, kind, opts.rod,
+                            size_mm=size_mm or opts.size_mm,
+                            fit=lambda q: predicted_fit(q, real.points, opts.printer))
+        except FabricationError as exc:
+            error = error or exc
+            continue
+        if best is None or p.level < best.level:
+            best = p
+        if best.level <= 1:
+            break
+    if best is None:
+        raise error
+    return best
 
 
 def choose(candidates: Iterable[Candidate], opts: Options, progress: Progress | None = None
@@ -138,9 +167,7 @@ def choose(candidates: Iterable[Candidate], opts: Options, progress: Progress | 
                 why = joints.in_place_refusal(loops.factor_axes(real.joint_factors))
                 raise FabricationError(why or "print-in-place is not built by paraloop",
                                        "bad-parameters")
-            plan = sizing.plan(real, opts.printer, opts.material, opts.joints, opts.rod,
-                               size_mm=opts.size_mm,
-                               fit=lambda p, r=real: predicted_fit(p, r.points, opts.printer))
+            plan = _plan(real, opts)
         except (RealizationError, FabricationError) as exc:
             if opts.joints == "print-in-place":
                 raise
@@ -172,12 +199,12 @@ def _fit_and_build(real: Realization, ee: object | None, plan: sizing.Plan, opts
         extras = {3: (solid, parts.principal_capsules(solid))}
     for _ in range(4):
         asm = assembly.assemble(plan, real.points, real.joint_factors, opts.printer,
-                                opts.joints, end_bars=end_bars, extras=extras)
+                                kind_of(plan), end_bars=end_bars, extras=extras)
         ext = np.array([_printed_extent(p) for p in asm.links])
         grow = float(bed.fit_factor(ext, opts.printer).min())
         if grow >= 1.0 or opts.size_mm is not None:
             return asm, plan
-        plan = sizing.plan(real, opts.printer, opts.material, opts.joints, opts.rod,
+        plan = sizing.plan(real, opts.printer, opts.material, kind_of(plan), opts.rod,
                            size_mm=plan.size_mm * min(grow, 0.99))
     return asm, plan
 

@@ -114,6 +114,8 @@ class Fastener:
 
 
 FASTENERS = {f.name.lower(): f for f in (
+    Fastener("M2", 2.0, 2.2, 3.8, 2.0, 4.0, 2.8, 5.0, 0.3,
+             (6.0, 8.0, 10.0, 12.0, 14.0, 16.0, 18.0, 20.0, 25.0, 30.0)),
     Fastener("M3", 3.0, 3.2, 5.5, 3.0, 5.5, 4.0, 7.0, 0.5,
              (8.0, 10.0, 12.0, 14.0, 16.0, 18.0, 20.0, 22.0, 25.0, 30.0, 35.0, 40.0, 45.0, 50.0)),
     Fastener("M4", 4.0, 4.3, 7.0, 4.0, 7.0, 5.0, 9.0, 0.8,
@@ -142,10 +144,13 @@ RODS = {r.name: r for r in (
 )}
 DEFAULT_ROD = RODS["6 mm steel rod"]
 
-#: Joint kinds of ``paraloop export --joints``: an M3 or M4 screw with a lock nut through both
-#: links (the default: metal axle, retained, adjustable), a printed pin with a printed cap
-#: pressed on (no hardware), or print-in-place (refused for spatial loops, with the reason).
-JOINT_KINDS = ("m3", "m4", "printed-pin", "print-in-place")
+#: Joint kinds of ``paraloop export --joints``: ``auto`` (the default: M3, or M2 where M3
+#: does not fit the room the certificate leaves), an M2, M3 or M4 screw with a lock nut through
+#: both links (metal axle, retained, adjustable), a printed pin with a printed cap pressed on
+#: (no hardware), or print-in-place (refused for spatial loops, with the reason).
+JOINT_KINDS = ("auto", "m2", "m3", "m4", "printed-pin", "print-in-place")
+#: What ``auto`` tries, in order.
+AUTO_JOINTS = ("m3", "m2")
 #: Printed pin (kind ``printed-pin``): shaft diameter, head height, cap height, the cap's press
 #: fit (its hole this much under the shaft) and how deep the shaft enters the cap.
 PRINTED_PIN_D_MM = 5.0
