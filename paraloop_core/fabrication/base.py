@@ -30,6 +30,7 @@ from dataclasses import dataclass
 
 import manifold3d as m3d
 import numpy as np
+from scipy.spatial import ConvexHull, QhullError
 
 from paraloop_core.algebra import dq, poly
 from paraloop_core.fabrication import parts, profiles
@@ -211,6 +212,10 @@ def _plate(com_xy: np.ndarray, foot: np.ndarray, socket_r: float, step: float
     """Centre and radius of the smallest disc holding the socket and with every centre of
     mass point, grown by ``step`` (its motion between samples), :data:`MARGIN` of its diameter
     inside the rim (an enclosing-circle search on a grid of centres around the points)."""
+    try:  # the farthest point from any centre is a vertex of the points' convex hull
+        com_xy = com_xy[ConvexHull(com_xy).vertices]
+    except QhullError:  # all on a line (or one point): every point stays
+        pass
     pts = np.vstack([com_xy, foot[None]])
     lo, hi = pts.min(0), pts.max(0)
     span = max(float(np.max(hi - lo)), 1.0)

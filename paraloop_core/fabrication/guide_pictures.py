@@ -20,6 +20,7 @@ building parts: :class:`Piece` (a rigid solid with a name and colour, mm) and :c
 from __future__ import annotations
 
 from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -320,5 +321,9 @@ def _groups(asm: Assembly, jt, meshes: dict, world: np.ndarray
 
 
 def assembly_pictures(asm: Assembly) -> list[tuple[str, bytes]]:
-    """:func:`assembly_scenes` rendered: ``(file name, PNG bytes)``."""
-    return [(name, scene.png()) for name, scene in assembly_scenes(asm)]
+    """:func:`assembly_scenes` rendered: ``(file name, PNG bytes)``, two at a time (the
+    renderer's numpy and Pillow work runs outside the interpreter lock)."""
+    scenes = assembly_scenes(asm)
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        pngs = list(pool.map(lambda ns: ns[1].png(), scenes))
+    return [(name, png) for (name, _), png in zip(scenes, pngs, strict=True)]

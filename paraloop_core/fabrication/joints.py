@@ -19,7 +19,9 @@ Joint j (axis ``A_j``) joins link j (its bar ends at ``E_j``) and link j+1 (its 
   pressed on its end;
 * kind ``rod``: the grounded joint: the grounding rod is the axle, fixed (press fit, glued) in
   the grounded link's boss, turning in the other link's boss, held by a printed cap glued on
-  its end; beyond the grounded link's boss it goes on down to the base (:mod:`base`).
+  its end (or, where the other link's bar leaves past that end, ending inside the boss: the
+  closed loop keeps a joint from sliding along its axis); beyond the grounded link's boss it
+  goes on down to the base (:mod:`base`).
 
 Every piece is a solid of revolution about the axis (the nut by its corner cylinder), so
 between the two links of a joint nothing changes with the joint angle, and against any other
@@ -170,7 +172,7 @@ def split_point(length: float, lower: np.ndarray, upper: np.ndarray, w: np.ndarr
 def layout(index: int, origin: np.ndarray, far: np.ndarray, axis: np.ndarray,
            bars: tuple[np.ndarray, np.ndarray], radii: tuple[float, float], boss: float,
            kind: str, printer: Printer, *, eps: float, rod: Rod | None = None,
-           rod_side: int | None = None) -> Joint:
+           rod_side: int | None = None, cap: bool = True) -> Joint:
     """Layout of joint ``index`` (module docstring) between ``origin = E_j`` and ``far =
     S_{j+1}`` (mm), ``axis`` the joint axis (used when the two points coincide), ``bars``
     link j's bar from ``E_j`` and link j+1's from ``S_{j+1}`` (vectors, mm), their hex
@@ -210,13 +212,16 @@ def layout(index: int, origin: np.ndarray, far: np.ndarray, axis: np.ndarray,
                   Piece(s3 + c, s3 + c + profiles.PRINTED_CAP_H_MM, head, "pin cap",
                         printed=True)]
     else:  # rod: a cap on the free side's end; beyond the other side it goes on to the base
-        head, cap = boss - 0.5, profiles.PRINTED_CAP_H_MM
+        head, height = boss - 0.5, profiles.PRINTED_CAP_H_MM
         deep = profiles.PRINTED_CAP_DEPTH_MM
-        if (rod_side or 0) == 0:
-            pieces = [Piece(s3 + c, s3 + c + cap, head, "rod cap", printed=True),
+        if not cap:  # the rod ends 1 mm inside the free boss; the closed loop holds it there
+            pieces = [Piece(s0, s3 - 1.0, d / 2, "rod") if (rod_side or 0) == 0 else
+                      Piece(s0 + 1.0, s3, d / 2, "rod")]
+        elif (rod_side or 0) == 0:
+            pieces = [Piece(s3 + c, s3 + c + height, head, "rod cap", printed=True),
                       Piece(s0, s3 + c + deep, d / 2, "rod")]
         else:
-            pieces = [Piece(s0 - c - cap, s0 - c, head, "rod cap", printed=True),
+            pieces = [Piece(s0 - c - height, s0 - c, head, "rod cap", printed=True),
                       Piece(s0 - c - deep, s3, d / 2, "rod")]
     fixed = None if kind != "rod" else (rod_side or 0)
     bores = tuple(bore_radius(kind, printer, rod, fixed == k) for k in (0, 1))

@@ -237,9 +237,9 @@ def _ground(asm: Assembly, opts: Options) -> tuple[Assembly, base.Base | None, l
                             "their predicted deflection")
     fallback = None
     for b in ranked[:GROUND_TRIES]:
-        for rod in _rods(asm, b, opts):
+        for rod, cap in ((rod, cap) for rod in _rods(asm, b, opts) for cap in (True, False)):
             try:
-                grounded = _on_rod(asm, replace(b, rod=rod), opts)
+                grounded = _on_rod(asm, replace(b, rod=rod), opts, cap)
             except FabricationError as exc:
                 if exc.reason not in ("falls-apart", "bad-parameters"):
                     raise
@@ -267,7 +267,8 @@ def _rods(asm: Assembly, b: base.Base, opts: Options) -> list[Rod]:
     return [opts.rod] + sorted(thinner, key=lambda rod: -rod.d_mm)[:1]
 
 
-def _on_rod(asm: Assembly, b: base.Base, opts: Options) -> tuple[Assembly, base.Base]:
+def _on_rod(asm: Assembly, b: base.Base, opts: Options, cap: bool = True
+            ) -> tuple[Assembly, base.Base]:
     """``asm`` with joint ``b.joint`` laid out for the rod, the plate and the rod added."""
     side = 0 if b.link == b.joint else 1
     old = asm.joints[b.joint]
@@ -275,10 +276,10 @@ def _on_rod(asm: Assembly, b: base.Base, opts: Options) -> tuple[Assembly, base.
     new = joints.layout(b.joint, old.origin, old.at(old.length), old.w,
                         assembly.bar_vectors(asm, b.joint), (r[b.joint], r[(b.joint + 1) % 6]),
                         old.boss_radius, "rod", opts.printer, eps=parts.EPS_MM, rod=b.rod,
-                        rod_side=side)
+                        rod_side=side, cap=cap)
     asm = assembly.relay(asm, b.joint, new)
     rod_piece = next(p for p in new.pieces if p.role == "rod")
-    cap_end = new.at(rod_piece.s1 if side == 0 else rod_piece.s0)
+    cap_end = new.at(rod_piece.s1 if side == 0 else rod_piece.s0)  # the rod's upper end
     b = replace(b, top=cap_end)
     asm = replace(asm, hardware=tuple(h for h in asm.hardware if h.role != "rod"))
     asm = assembly.with_parts(asm, (base.plate_part(b, opts.printer.wall_mm),),
