@@ -35,8 +35,9 @@ from paraloop_core.result import result_to_dict
 PIN_FRACTIONS = (0.075, 0.095, 0.06, 0.045)
 #: Bar radius of the realization search as a share of the offset d: the certified gaps.
 RHO_FRACTIONS = (0.5, 0.35)
-#: Work budget of each candidate search (:meth:`realize.Search.work`).
-WORK = 10_000
+#: Work budget of each candidate search (:meth:`realize.Search.work`; about 0.3 ms a unit):
+#: more for the design's own loop, the one worth printing.
+WORK, WORK_OWN = 10_000, 25_000
 Progress = Callable[[float, str], None]
 
 
@@ -55,7 +56,7 @@ def expected_size(sol: Solution, printer: printable.Printer) -> tuple[float, flo
 
 
 def realize_variant(sol: Solution, loop: int, d_fraction: float, rho_fraction: float,
-                    budget: int = WORK) -> Solution:
+                    budget: int | None = None) -> Solution:
     """``sol`` realized anew on ``loop`` with offset ``d_fraction`` of the polyline and bars
     ``rho_fraction`` of it (the design's ``p``, fixed vertices and end-effector); raises
     :class:`RealizationError` when the search finds none."""
@@ -63,6 +64,7 @@ def realize_variant(sol: Solution, loop: int, d_fraction: float, rho_fraction: f
                  rho_fraction=rho_fraction)
     attempt = replace(sol, design=replace(sol.design, loop=loop, realization=rs))
     jf, in_unit = sol.search_factors(loop)
+    budget = budget or (WORK_OWN if loop == sol.design.loop else WORK)
     params = dict(p=rs.p, d_fraction=d_fraction, rho_fraction=rho_fraction,
                   fixed=dict(rs.fixed), max_k=rs.max_k, in_unit=in_unit, budget=budget)
     if sol.design.end_effector is None:

@@ -50,6 +50,8 @@ THICKNESS_MM = (5.0, 8.0, 12.0)
 GAP_MM, SOCKET_D = 3.0, 1.5
 #: Samples of the cycle for the centre of mass and the clearances.
 SAMPLES = 360
+#: The rod's clearance to each moving link per required gap.
+GAP_MARGIN = 1.25
 #: Wood screws that fix a plate that does not stand on its own (hole diameter, mm).
 MOUNT_HOLE_MM = 4.5
 
@@ -261,7 +263,9 @@ def ground(asm: Assembly, density_g_cm3: float, bed_mm: tuple[float, float, floa
     to each moving link (default the sizing's required gaps). The best stands, rests the
     link the sizing planned the motor torque for, has the smallest plate (the design's z
     nearest up as a tie-break), then the shortest rod."""
-    need = asm.plan.gaps if need is None else need
+    # the required gaps with the sizing's margin: the rod is checked on capsules, like the
+    # parts, and should not sit at the limit either
+    need = asm.plan.gaps * GAP_MARGIN if need is None else need
     u = np.arange(SAMPLES) / SAMPLES
     masses, centers = link_masses(asm, density_g_cm3)
     room = min(bed_mm[0], bed_mm[1]) / 2 - 5.0

@@ -27,6 +27,7 @@ from __future__ import annotations
 import itertools
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import manifold3d as m3d
 import numpy as np
@@ -54,17 +55,40 @@ def part_trimesh(solid: m3d.Manifold) -> trimesh.Trimesh:
                            np.asarray(mesh.tri_verts, np.int64), process=True)
 
 
-def _group(asm: Assembly, link: int) -> tuple[m3d.Manifold, np.ndarray, np.ndarray, np.ndarray]:
-    """Solid, capsules ``(n, 2, 3)``, radii ``(n,)`` and joint tags ``(n,)`` of link
-    ``link``'s rigid group (module docstring)."""
-    mine = [p for p in asm.parts if p.link == link]
-    hard = [h for h in asm.hardware if h.link == link]
-    solid = m3d.Manifold.batch_boolean([p.manifold for p in mine] + [h.solid for h in hard],
-                                       m3d.OpType.Add)
-    caps = np.concatenate([p.capsules for p in mine] + [h.capsule[None] for h in hard])
-    radii = np.concatenate([p.radii for p in mine] + [np.array([h.radius]) for h in hard])
-    tags = np.concatenate([p.joint for p in mine] + [np.array([h.joint]) for h in hard])
-    return solid, caps, radii, tags
+@dataclass(frozen=True)
+class _Piece:
+    """One solid of a link's group with its capsules ``(n, 2, 3)``, radii and joint tags."""
+
+    solid: m3d.Manifold
+    caps: np.ndarray
+    radii: np.ndarray
+    tags: np.ndarray
+
+
+def _group(asm: Assembly, link: int) -> list[_Piece]:
+    """Link ``link``'s rigid group (module docstring), piece by piece."""
+    out = [_Piece(p.manifold, p.capsules, p.radii, p.joint) for p in asm.parts
+           if p.link == link]
+    return out + [_Piece(h.solid, h.capsule[None], np.array([h.radius]), np.array([h.joint]))
+                  for h in asm.hardware if h.link == link]
+
+
+def _outside(asm: Assembly, joint: int, pieces: list[_Piece], w: m3d.Manifold
+             ) -> list[_Piece]:
+    """``pieces`` without joint ``joint``'s zone ``w``: solids cut, the zone's capsules
+    dropped and the body capsules that enter it trimmed (:func:`trimmed`); pieces left with
+    no capsule lie in the zone and are dropped."""
+    out = []
+    for q in pieces:
+        keep = q.tags != joint
+        if keep.any():
+            caps = trimmed(asm, joint, q.caps, q.radii, q.tags)[keep]
+            out.append(_Piece(q.solid - w, caps, q.radii[keep], q.tags[keep]))
+    return out
+
+
+def _united(pieces: list[_Piece]) -> m3d.Manifold:
+    return m3d.Manifold.batch_boolean([q.solid for q in pieces], m3d.OpType.Add)
 
 
 def trimmed(asm: Assembly, j: int, caps: np.ndarray, radii: np.ndarray, tags: np.ndarray
@@ -136,20 +160,28 @@ def _affine(m: np.ndarray) -> list:
     return [list(map(float, row)) for row in m[:3, :4]]
 
 
-def _gaps(asm: Assembly, a: int, b: int, ma: m3d.Manifold, mb: m3d.Manifold,
-          full: tuple[m3d.Manifold, m3d.Manifold], caps: tuple, u: np.ndarray,
-          below: float) -> tuple[np.ndarray, np.ndarray, int]:
+def _gaps(asm: Assembly, a: int, b: int, pa: list[_Piece], pb: list[_Piece],
+          u: np.ndarray, below: float) -> tuple[np.ndarray, np.ndarray, int]:
     """Gap (the capsule bound where that reaches ``below``, else exact), intersection volume
-    ``(T,)`` and the number of exact checks, of group a and group b moved, at ``u``."""
+    ``(T,)`` and the number of exact checks, of pieces ``pa`` (link a) and ``pb`` (link b,
+    moved) at ``u``. Exact gaps only between the pieces whose own capsules come within
+    ``below`` (a group's plate or hardware is not measured where only a bar comes close)."""
     poses = _mm_poses(asm, u)
     rel = np.linalg.inv(poses[:, a]) @ poses[:, b]
-    lb = _capsule_gap(caps[0], caps[1], rel)
+    lbs = np.array([[_capsule_gap((x.caps, x.radii), (y.caps, y.radii), rel) for y in pb]
+                    for x in pa])  # (A, B, T)
+    lb = lbs.min(axis=(0, 1))
     gap, vol = lb.copy(), np.zeros(len(u))
     for s in np.nonzero(lb < below)[0]:
-        # exact up to 2 mm past the threshold: a capped value must not fake a small gap
-        gap[s] = max(lb[s], ma.min_gap(mb.transform(_affine(rel[s])), below + 2.0))
-        if gap[s] <= 0.0:
-            vol[s] = (full[0] ^ full[1].transform(_affine(rel[s]))).volume()
+        m = _affine(rel[s])
+        vals = lbs[:, :, s].copy()
+        for i, k in zip(*np.nonzero(vals < below), strict=True):
+            # exact up to 2 mm past the threshold: a capped value must not fake a small gap
+            moved = pb[k].solid.transform(m)
+            vals[i, k] = max(vals[i, k], pa[i].solid.min_gap(moved, below + 2.0))
+            if vals[i, k] <= 0.0:
+                vol[s] = max(vol[s], (pa[i].solid ^ moved).volume())
+        gap[s] = vals.min()
     return gap, vol, int(np.sum(lb < below))
 
 
@@ -212,27 +244,25 @@ def verify(asm: Assembly, samples: int = 720, progress: Progress | None = None) 
         if progress is not None:
             progress(k / 15, f"verifying links {a} and {b}")
         joint = a if b == a + 1 else (5 if (a, b) == (0, 5) else None)
-        (sa, ca, ra, ta), (sb, cb, rb, tb) = groups[a], groups[b]
-        const, ma, mb = np.inf, sa, sb
-        keep_a, keep_b = np.ones(len(ra), bool), np.ones(len(rb), bool)
+        pa, pb = groups[a], groups[b]
+        const = np.inf
         required = 0.0 if joint is not None else float(need[a, b])
         if joint is not None:
             w = zone(asm, joint)
-            ma, mb = sa - w, sb - w
             lo_hull, up_hull = zone_hulls(asm, joint)
-            lo, up = (sa, sb) if joint == a else (sb, sa)
+            lo, up = (a, b) if joint == a else (b, a)
+            lo_s, up_s = _united(groups[lo]), _united(groups[up])
             jt = asm.joints[joint]
             poly_err = (jt.reach + parts.EPS_MM) * (1.0 - np.cos(np.pi / parts.SEGMENTS))
-            search = 2.0
-            raw = min(lo_hull.min_gap(up - w, search), up_hull.min_gap(lo - w, search))
-            const = raw - poly_err if raw < search else np.inf
-            joint_gaps.append(_printed(asm, a).min_gap(_printed(asm, b), search))
-            keep_a, keep_b = ta != joint, tb != joint
-            ca, cb = trimmed(asm, joint, ca, ra, ta), trimmed(asm, joint, cb, rb, tb)
+            raw = min(lo_hull.min_gap(up_s - w, 2.0), up_hull.min_gap(lo_s - w, 2.0))
+            const = raw - poly_err if raw < 2.0 else np.inf
+            joint_gaps.append(_printed(asm, a).min_gap(_printed(asm, b), 2.0))
+            pa, pb = _outside(asm, joint, pa, w), _outside(asm, joint, pb, w)
         # exact gaps only where the capsules do not prove the required gap by themselves
         search = required + 0.05
-        caps = ((ca[keep_a], ra[keep_a]), (cb[keep_b], rb[keep_b]))
-        gap, vol, n_exact = _gaps(asm, a, b, ma, mb, (sa, sb), caps, u0, search)
+        cb = np.concatenate([q.caps for q in pb])
+        rb = np.concatenate([q.radii for q in pb])
+        gap, vol, n_exact = _gaps(asm, a, b, pa, pb, u0, search)
         u = u0
         for _ in range(REFINE_ROUNDS):  # refine cells whose motion bound eats their margin
             delta = _step(asm, a, b, cb, rb, u)
@@ -242,7 +272,7 @@ def verify(asm: Assembly, samples: int = 720, progress: Progress | None = None) 
             new = _subsamples(u, bad, np.ceil(2 * delta[bad] / (gap[bad] - required)))
             if n_exact + len(new) > MAX_EXACT_CHECKS:
                 break
-            g_new, v_new, n_new = _gaps(asm, a, b, ma, mb, (sa, sb), caps, new, search)
+            g_new, v_new, n_new = _gaps(asm, a, b, pa, pb, new, search)
             n_exact += n_new
             order = np.argsort(np.concatenate([u, new]))
             u = np.concatenate([u, new])[order]
