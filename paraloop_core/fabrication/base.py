@@ -26,7 +26,7 @@ Every (joint, side) is tried (:func:`ground`):
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import manifold3d as m3d
 import numpy as np
@@ -318,6 +318,27 @@ def ground(asm: Assembly, density_g_cm3: float, bed_mm: tuple[float, float, floa
                                 float(radius), t, plate_top - t, com, float(inside), clear,
                                 stands, mount, masses)))
     return [b for _, b in sorted(found, key=lambda kb: kb[0])]
+
+
+def final(asm: Assembly, b: Base, density_g_cm3: float, samples: int = 720) -> Base:
+    """``b`` with the centre of mass path, margin and ``stands`` measured again on the built
+    assembly (its plate, rod, re-laid grounded joint and every piece of hardware included):
+    the figures the report gives and the guide trusts."""
+    u = np.arange(samples) / samples
+    masses, centers = link_masses(asm, density_g_cm3)
+    poses = _mm_poses(asm.joint_factors, asm.scale, b.link, u)
+    com = _com(asm, masses, centers, b.link, poses, 0.0, np.zeros(3))
+    step = max(float(np.max(_bounds(asm, b.link, k, centers[k][None, None], u)))
+               for k in range(6) if k != b.link)
+    far = float(np.linalg.norm(com @ b.frame[:, :2] - b.center, axis=1).max())
+    inside = b.radius - far - step
+    stands = bool(inside >= MARGIN * 2 * b.radius * 0.999)
+    mount = None if stands else (
+        f"the centre of mass comes within {max(inside, 0):.0f} mm of the plate's rim (or "
+        "beyond it) in some pose: screw the plate to a board or a table through its four "
+        f"{MOUNT_HOLE_MM:g} mm holes (wood screws, 4 mm)")
+    return replace(b, com=com, margin_mm=float(inside), stands=stands, mount=mount,
+                   masses_g=masses)
 
 
 def plate_part(b: Base, wall_mm: float, segments: int = 96) -> Part:

@@ -284,7 +284,8 @@ def _on_rod(asm: Assembly, b: base.Base, opts: Options, cap: bool = True
     asm = replace(asm, hardware=tuple(h for h in asm.hardware if h.role != "rod"))
     asm = assembly.with_parts(asm, (base.plate_part(b, opts.printer.wall_mm),),
                               (base.rod_hardware(b, cap_end),), b)
-    return asm, b
+    b = base.final(asm, b, opts.material.density_g_cm3)
+    return replace(asm, base=b), b
 
 
 def make(candidates: Iterable[Candidate], opts: Options | None = None,
