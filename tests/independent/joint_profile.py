@@ -99,6 +99,16 @@ def thinnest_wall(p: Profile, mask: np.ndarray, edge_mm: float = 0.3
     return float(w[k, a]), float(p.s[k]), float(a * 360.0 / w.shape[1])
 
 
+def floor(p: Profile, mask: np.ndarray) -> float | None:
+    """Thinnest floor (mm, lower bound) under a blind bore among the ``mask`` stations: a run
+    of stations with the axis in the material next to a station whose bore is open; None
+    when there is none (through bores)."""
+    open_bore = surrounded(p)
+    runs = [(i, j) for i, j in runs_of(p.inside & mask)
+            if (i > 0 and open_bore[i - 1]) or (j + 1 < len(p.s) and open_bore[j + 1])]
+    return min(((j - i) * STEP_MM for i, j in runs), default=None)
+
+
 def intrusion(p: Profile, lo: float, hi: float, free_r: float) -> float:
     """Length (mm) of the stations strictly inside [lo, hi] (0.1 mm in from each end) where
     the material comes inside ``free_r - FIT_TOL_MM`` of the axis: a piece there would not fit."""

@@ -13,6 +13,11 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import ConvexHull
 
+#: Resolution of a length read from the files (mm): STL and 3MF vertices are float32, ~2e-5 mm
+#: at 300 mm. A figure passes its limit only by more than this, so a value sitting on a limit
+#: does not pass by an accident of rounding.
+RESOLUTION_MM = 1e-3
+
 
 def frame(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Unit ``axis`` (3,) and two unit vectors ``u, w`` (3,) completing a right-handed frame."""

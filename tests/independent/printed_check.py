@@ -4,8 +4,8 @@ No ``paraloop_core`` import: the motion is read from the folder's ``result.json`
 package's own dual-quaternion code, the parts from its STL and 3MF files, the rest of the
 layout from ``report.json`` (joint axes and hardware, base frame, densities, bed). Checks:
 
-1. bars: sections of each link perpendicular to its bar at 20 %..80 % of its length; least
-   caliper width >= 6 mm, length / width <= 30;
+1. bars: sections of each link perpendicular to its bar at 20 %..80 % of its length (outside
+   its bosses); least caliper width >= 6 mm, length / width <= 30;
 2. joints (:mod:`printed_joints`): engagement >= 1.5 x the axle diameter in both links, walls
    >= the profile wall, retention (lock nut and hexagonal trap, or the rod's cap);
 3. stands (:mod:`printed_stand`): centre of mass inside the plate's footprint with 10 % margin
@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .meshgeom import Sections, section_width
+from .meshgeom import RESOLUTION_MM, Sections, section_width
 from .printed_collide import check_collisions
 from .printed_joints import check_bom, check_joint
 from .printed_kin import Export, bars, closure_error, load_export, parameters
@@ -41,24 +41,48 @@ STATIONS = np.linspace(0.2, 0.8, 25)
 CLOSURE_TOL_MM = 1e-6
 
 
+def _in_boss(ex: Export, link: int, x: np.ndarray) -> bool:
+    """Whether the point ``x`` (mm) lies within 1 mm of one of the link's bosses (a joint's
+    cylinder from report.json: ``boss_radius_mm`` around its axis over ``bosses_mm``)."""
+    for jt in ex.report["joints"]:
+        j = int(jt["joint"])
+        if link not in (j, (j + 1) % 6):
+            continue
+        lo, hi = jt["bosses_mm"][0 if link == j else 1]
+        a = np.asarray(jt["axis"], float)
+        d = x - np.asarray(jt["origin_mm"], float)
+        s = d @ a
+        if lo - 1 <= s <= hi + 1 and np.linalg.norm(d - s * a) <= jt["boss_radius_mm"] + 1:
+            return True
+    return False
+
+
 def check_bars(ex: Export) -> tuple[list[dict], list[str]]:
-    """Least width, its station and length / width of every bar (mm)."""
+    """Least width, its station and length / width of every bar (mm). Stations inside a
+    boss (a short link's joints reach past 20 % of it) belong to the joint, not the bar."""
     rows, fails = [], []
     for link, a, b in bars(ex):
         length = float(np.linalg.norm(b - a))
+        keep = [x for x in STATIONS if not _in_boss(ex, link, a + x * (b - a))]
+        row = {"link": link, "length_mm": length, "stations": len(keep)}
+        rows.append(row)
+        if not keep:
+            row.update(min_width_mm=None, length_per_width=None)
+            continue
         sec = Sections(ex.links[link].vertices, ex.links[link].faces, a, b - a,
-                       STATIONS * length)
-        widths = np.array([section_width(sec, k, np.zeros(2))[0] for k in range(len(STATIONS))])
+                       np.array(keep) * length)
+        widths = np.array([section_width(sec, k, np.zeros(2))[0] for k in range(len(keep))])
         k = int(np.argmin(widths))
         w = float(widths[k])
-        row = {"link": link, "length_mm": length, "min_width_mm": w,
-               "at_share": float(STATIONS[k]),
-               "length_per_width": length / w if w > 0 else float("inf")}
-        rows.append(row)
-        if not w >= MIN_WIDTH_MM:
-            fails.append(f"bar: link {link} is {w:.2f} mm wide at {STATIONS[k]:.0%} of its "
+        row.update(min_width_mm=w, at_share=float(keep[k]),
+                   length_per_width=length / w if w > 0 else float("inf"))
+        if w == 0:
+            fails.append(f"bar: link {link} has a hole or notch across its axis at "
+                         f"{keep[k]:.0%} of its {length:.0f} mm bar (no material around it)")
+        elif not w >= MIN_WIDTH_MM + RESOLUTION_MM:
+            fails.append(f"bar: link {link} is {w:.2f} mm wide at {keep[k]:.0%} of its "
                          f"{length:.0f} mm bar < {MIN_WIDTH_MM:g} mm")
-        if not row["length_per_width"] <= MAX_LENGTH_PER_WIDTH:
+        if w > 0 and not length <= MAX_LENGTH_PER_WIDTH * (w - RESOLUTION_MM):
             fails.append(f"bar: link {link} length / width {row['length_per_width']:.1f} > "
                          f"{MAX_LENGTH_PER_WIDTH:g}")
     return rows, fails
@@ -113,8 +137,9 @@ def _plain(x):
 def summary(findings: dict) -> dict:
     """The headline figures of :func:`check_export`'s findings."""
     f = findings["figures"]
-    out = {"min_bar_width_mm": min(b["min_width_mm"] for b in f["bars"]),
-           "max_length_per_width": max(float(b["length_per_width"]) for b in f["bars"]),
+    measured = [b for b in f["bars"] if b["min_width_mm"] is not None]
+    out = {"min_bar_width_mm": min(b["min_width_mm"] for b in measured),
+           "max_length_per_width": max(float(b["length_per_width"]) for b in measured),
            "min_engagement_mm": min(r["engagement_mm"] for j in f["joints"] for r in j["links"]),
            "min_boss_wall_mm": min(float(r["boss_wall_mm"]) for j in f["joints"]
                                    for r in j["links"]),

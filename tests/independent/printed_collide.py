@@ -24,6 +24,7 @@ from scipy.cluster.vq import kmeans2
 from scipy.optimize import minimize_scalar
 
 from .dense_check import _key
+from .meshgeom import RESOLUTION_MM
 from .printed_kin import key_to_t, parameters, relative_motion
 
 #: Least distance (mm) between parts without a common joint (issue 26).
@@ -190,6 +191,7 @@ def check_collisions(ex, rod: dict | None = None) -> tuple[dict, list[str]]:
     t = parameters(ex.jf, N_SAMPLES)
     rows = [pair_minimum(p, t) for p in pairs]
     fails = [f"collision: {r['parts'][0]} and {r['parts'][1]} come {r['min_mm']:.2f} mm apart "
-             f"(t = {r['t']:.4g}) < {LIMIT_MM:g} mm" for r in rows if not r["min_mm"] >= LIMIT_MM]
+             f"(t = {r['t']:.4g}) < {LIMIT_MM:g} mm" for r in rows
+             if not r["min_mm"] >= LIMIT_MM + RESOLUTION_MM]
     links = [r["min_mm"] for r in rows if r["parts"][1].startswith("link_")]
     return {"pairs": rows, "samples": len(t), "min_non_adjacent_mm": min(links)}, fails

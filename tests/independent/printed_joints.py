@@ -16,6 +16,7 @@ import re
 import numpy as np
 
 from . import joint_profile as jp
+from .meshgeom import RESOLUTION_MM
 
 #: Engagement of an axle in each link, in axle diameters (issue 26).
 ENGAGE_FACTOR = 1.5
@@ -60,7 +61,7 @@ def check_joint(ex, j: int, wall_mm: float) -> tuple[dict, list[str], list[str]]
         link = (j + k) % 6
         held = jp.held(p, r_axle)
         with np.errstate(invalid="ignore"):  # inf - inf where a ray meets nothing
-            walled = held & (np.min(p.rout - p.rin, axis=1) >= wall_mm)
+            walled = held & (np.min(p.rout - p.rin, axis=1) >= wall_mm + RESOLUTION_MM)
         in_boss = (p.s >= bosses[k][0]) & (p.s <= bosses[k][1])
         sur = jp.surrounded(p)
         boss_wall, at_s, at_deg = jp.thinnest_wall(p, sur & in_boss)
@@ -70,21 +71,21 @@ def check_joint(ex, j: int, wall_mm: float) -> tuple[dict, list[str], list[str]]
                if held.any() else None,
                "boss_wall_mm": boss_wall, "boss_wall_at": {"s_mm": at_s, "deg": at_deg},
                "sliver_wall_mm": jp.thinnest_wall(p, sur & ~in_boss)[0],
-               "axis_in_material_mm": float(np.count_nonzero(p.inside & in_boss) * jp.STEP_MM)}
+               "floor_mm": jp.floor(p, in_boss)}
         need = ENGAGE_FACTOR * 2 * r_axle
         if not row["engagement_mm"] >= need:
             fails.append(f"joint {j}: link {link} holds the {2 * r_axle:g} mm axle with a "
                          f"{wall_mm:g} mm wall over {row['engagement_mm']:.2f} mm < "
                          f"{need:.2f} mm (1.5 x diameter)")
-        if not row["boss_wall_mm"] >= wall_mm:
+        if not boss_wall >= wall_mm + RESOLUTION_MM:
             fails.append(f"joint {j}: link {link} wall {boss_wall:.2f} mm in its boss (around the "
                          f"bore or a recess, at s = {at_s:.1f} mm) < profile wall {wall_mm:g} mm")
         if row["sliver_wall_mm"] < wall_mm:
             warns.append(f"joint {j}: link {link} has walls of {row['sliver_wall_mm']:.2f} mm "
                          "around the bore outside its boss (a bar's end cut by the bore)")
-        if row["axis_in_material_mm"] > 0:
-            fails.append(f"joint {j}: link {link} has material on the axis over "
-                         f"{row['axis_in_material_mm']:.1f} mm of its boss (bore blocked)")
+        if row["floor_mm"] is not None and not row["floor_mm"] >= wall_mm + RESOLUTION_MM:
+            fails.append(f"joint {j}: link {link} floor of {row['floor_mm']:.2f} mm under its "
+                         f"blind bore < profile wall {wall_mm:g} mm")
         for piece in jt.get("pieces", []):
             if piece.get("printed"):
                 continue
@@ -136,7 +137,7 @@ def _screw_retention(ex, jt: dict, prof: list, out: dict) -> list[str]:
     nut_link = out["links"][k_nut]["link"]
     if nut_link != (j + 1) % 6:
         fails.append(f"joint {j}: the nut sits in link {nut_link}, not link {(j + 1) % 6}")
-    if not clear >= -jp.FIT_TOL_MM:
+    if not clear >= RESOLUTION_MM - jp.FIT_TOL_MM:
         fails.append(f"joint {j}: the {a_nut:.2f} mm nut does not fit its trap "
                      f"(short by {-clear:.2f} mm)")
     if not blocked >= 0.5:
@@ -147,7 +148,7 @@ def _screw_retention(ex, jt: dict, prof: list, out: dict) -> list[str]:
                      "screw head to bear on")
     if nut_face is None:
         fails.append(f"joint {j}: no face in link {nut_link} for the nut to bear on")
-    if reach is not None and not reach >= pitch:
+    if reach is not None and not reach >= pitch + RESOLUTION_MM:
         fails.append(f"joint {j}: the {screw_len:g} mm screw passes the nut's far face by "
                      f"{reach:.2f} mm < {pitch:.2f} mm (a thread)")
     return fails

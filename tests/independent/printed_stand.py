@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import joint_profile as jp
-from .meshgeom import line_hits, point_in_hull
+from .meshgeom import RESOLUTION_MM, line_hits, point_in_hull
 from .printed_kin import parameters, world_motion
 
 #: Steel density, g/mm^3.
@@ -142,11 +142,11 @@ def check_stand(ex) -> tuple[dict, list[str]]:
            "footprint_diameter_mm": diameter, "com_margin_mm": float(margin[k]),
            "com_margin_share": float(margin[k] / diameter), "worst_t": float(t[k]),
            "com_step_mm": step, "plate_top_mm": top, "lowest_link_mm": lowest, "rod": rod_info}
-    if not margin[k] - step / 2 >= MARGIN_SHARE * diameter:
+    if not margin[k] - step / 2 - RESOLUTION_MM >= MARGIN_SHARE * diameter:
         fails.append(f"stand: the centre of mass comes {margin[k]:.1f} mm inside the "
                      f"footprint's edge (less {step / 2:.1f} mm between samples) < "
                      f"{MARGIN_SHARE:.0%} of its {diameter:.0f} mm diameter")
-    if not lowest > top:
+    if not lowest >= top + RESOLUTION_MM:
         fails.append(f"stand: a link goes down to z = {lowest:.2f} mm, below the plate's top "
                      f"({top:.2f} mm)")
     return out, fails
