@@ -138,8 +138,9 @@ def summary(findings: dict) -> dict:
     """The headline figures of :func:`check_export`'s findings."""
     f = findings["figures"]
     measured = [b for b in f["bars"] if b["min_width_mm"] is not None]
-    out = {"min_bar_width_mm": min(b["min_width_mm"] for b in measured),
-           "max_length_per_width": max(float(b["length_per_width"]) for b in measured),
+    out = {"min_bar_width_mm": min((b["min_width_mm"] for b in measured), default=None),
+           "max_length_per_width": max((float(b["length_per_width"]) for b in measured),
+                                       default=None),
            "min_engagement_mm": min(r["engagement_mm"] for j in f["joints"] for r in j["links"]),
            "min_boss_wall_mm": min(float(r["boss_wall_mm"]) for j in f["joints"]
                                    for r in j["links"]),

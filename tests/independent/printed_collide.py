@@ -170,7 +170,11 @@ def _hardware(ex, link: int) -> list[trimesh.Trimesh]:
 def check_collisions(ex, rod: dict | None = None) -> tuple[dict, list[str]]:
     """Figures and failures of the clearance check; ``rod`` (home mm ``bottom``, ``top``,
     ``radius_mm``) adds the grounding rod to the still base."""
-    bodies = [Body(f"link_{i}", [m] + _hardware(ex, i), i) for i, m in enumerate(ex.links)]
+    carried = [p for p in ex.report.get("parts", [])  # printed pieces other than the rod's cap
+               if p["role"] not in ("link", "base") and not p["name"].startswith("rod_cap")]
+    bodies = [Body(f"link_{i}", [m] + _hardware(ex, i) + [ex.mesh(p["name"]) for p in carried
+                                                          if int(p["link"]) == i], i)
+              for i, m in enumerate(ex.links)]
     g = ex.grounded
     pairs = [Pair(ex, bodies[i], bodies[k]) for i in range(6) for k in range(i + 1, 6)
              if (k - i) % 6 not in (1, 5)]
@@ -184,7 +188,7 @@ def check_collisions(ex, rod: dict | None = None) -> tuple[dict, list[str]]:
             steel = _cylinder(rod["bottom"], rod["top"], rod["radius_mm"])
             extra.append((Body("rod", [steel], g), turning))
         for part in ex.report.get("parts", []):
-            if part["role"] == "cap":
+            if part["name"].startswith("rod_cap"):  # glued on the still rod
                 extra.append((Body(part["name"], [ex.mesh(part["name"])], g), turning))
         for body, skip in extra:
             pairs += [Pair(ex, bodies[i], body) for i in range(6) if i != g and i not in skip]

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import re
 
+import manifold3d as m3
 import numpy as np
 import trimesh
 
@@ -72,8 +73,6 @@ def part_figures(mesh: trimesh.Trimesh) -> dict:
 
 def check_layout(ex) -> tuple[dict, list[str]]:
     """Figures per part and failures of the export's plates."""
-    import manifold3d as m3
-
     bed = np.asarray(ex.report["sizing"]["bed_mm"], float)
     fails, rows = [], []
     seen: dict[str, int] = {}

@@ -94,7 +94,11 @@ def _masses(ex, dens: float, plate) -> tuple[list, list, dict, list[str]]:
         if part["role"] in ("link", "base"):
             continue
         m = ex.mesh(part["name"])
-        fixed.append((m.volume * dens, m.center_mass))  # the rod's cap: on the still rod
+        if part["name"].startswith("rod_cap"):
+            # glued on the still rod (report.json's "link" of a rod cap is its joint's index)
+            fixed.append((m.volume * dens, m.center_mass))
+        else:
+            moving.append((int(part["link"]), m.volume * dens, m.center_mass))
     fixed.append((plate.volume * dens, plate.center_mass))
     rod_info, fails = {}, []
     if ex.report["base"].get("rod_joint") is not None:
