@@ -1,0 +1,203 @@
+"""The independent checker of a printed export (``tests/independent/printed_check.py``, issue 26).
+
+Known answers for its measuring tools, the five examples' plain exports checked against the
+issue's "Done when", and a good export damaged four ways (a thinner bar, a shrunk base plate,
+a part tilted on the bed, a bore filled in), each of which must be reported as its failure.
+The damage starts from ``tests/data/printed_sun-path-fit`` (an export of the printed loop:
+result.json, report.json, STL and 3MF files; regenerate it with ``paraloop export
+assets/designs/sun-path-fit.json --out DIR`` when the export's format changes).
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import manifold3d as m3
+import numpy as np
+import pytest
+import trimesh
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from independent import joint_profile as jp
+from independent import meshgeom as mg
+from independent import printed_check as pc
+from independent import printed_layout, printed_stand
+from independent.printed_kin import load_export
+
+ROOT = Path(__file__).resolve().parents[1]
+SAMPLE = Path(__file__).parent / "data" / "printed_sun-path-fit"
+EXAMPLES = ["tv8", "sun-disc", "shading-panel", "sun-path-fit", "arc-sculpture"]
+
+
+# --- the measuring tools on shapes of known size --------------------------------------------
+
+@settings(max_examples=40, deadline=None)
+@given(st.floats(1.0, 30.0), st.floats(0.0, 6.3), st.floats(-50, 50), st.floats(-50, 50))
+def test_least_width_of_a_hexagon_is_its_flats(r, turn, x, y):
+    """A regular hexagon of corner radius r is r sqrt(3) wide however it is placed."""
+    a = turn + np.arange(6) * np.pi / 3
+    pts = np.stack([x + r * np.cos(a), y + r * np.sin(a)], axis=1)
+    assert mg.least_width(pts) == pytest.approx(r * np.sqrt(3), rel=1e-9)
+
+
+def test_area_above_a_level_of_a_sloped_triangle():
+    """Right triangle rising from 0 to 2 along x: above z = 1 lies a quarter of it."""
+    z = np.array([[0.0, 2.0, 0.0]])  # heights of corners (0,0), (2,0), (0,2): z = x
+    area = np.array([2.0])
+    assert mg.area_above(z, area, 1.0)[0] == pytest.approx(0.25 * 2.0)
+    assert mg.area_above(z, area, -1.0)[0] == pytest.approx(2.0)
+    assert mg.area_above(z, area, 3.0)[0] == 0.0
+
+
+def test_sections_of_a_box_measure_its_least_side():
+    box = trimesh.creation.box(extents=[40.0, 8.0, 12.0])
+    sec = mg.Sections(box.vertices, box.faces, np.array([-20.0, 0, 0]), np.array([1.0, 0, 0]),
+                      np.array([5.0, 20.0, 35.0]))
+    for k in range(3):
+        width, loops = mg.section_width(sec, k, np.zeros(2))
+        assert loops == 1 and width == pytest.approx(8.0)
+    assert mg.section_width(sec, 1, np.array([9.0, 0.0]))[0] == 0.0  # outside the material
+
+
+def _tube(r_in: float, r_out: float, length: float, sections: int = 64) -> trimesh.Trimesh:
+    outer = trimesh.creation.cylinder(radius=r_out, height=length, sections=sections)
+    inner = trimesh.creation.cylinder(radius=r_in, height=length + 2, sections=sections)
+    return outer.difference(inner, engine="manifold")
+
+
+def test_profile_of_a_tube():
+    """A 3.4/8 mm tube, 12 mm long, holds a 6 mm axle over 12 mm with a 4.6 mm wall (the
+    station count gives a lower bound one step short at most)."""
+    p = jp.profile(_tube(3.4, 8.0, 12.0), np.zeros(3), np.array([0, 0, 1.0]), -8.0, 8.0)
+    held = jp.held(p, 3.0)
+    assert 12.0 - 2 * jp.STEP_MM <= jp.run_length(held) <= 12.0
+    wall = jp.thinnest_wall(p, jp.surrounded(p))[0]
+    assert wall == pytest.approx(8.0 - 3.4, abs=0.02)
+    assert jp.run_length(jp.held(p, 1.5)) == 0.0  # a 3 mm screw rattles in it
+    assert jp.floor(p, np.ones(len(p.s), bool)) is None  # a through bore
+
+
+def test_floor_of_a_blind_bore():
+    """A 3.4 mm bore 8 mm deep into a 12 mm boss leaves a 4 mm floor."""
+    boss = trimesh.creation.cylinder(radius=8.0, height=12.0, sections=64)
+    bore = trimesh.creation.cylinder(radius=3.4, sections=64, segment=[[0, 0, -7.0], [0, 0, 2.0]])
+    p = jp.profile(boss.difference(bore, engine="manifold"), np.zeros(3),
+                   np.array([0, 0, 1.0]), -8.0, 8.0)
+    assert 4.0 - 2 * jp.STEP_MM <= jp.floor(p, np.abs(p.s) <= 6.0) <= 4.0
+
+
+def test_hex_trap_takes_a_nut_and_stops_it_turning():
+    """A 5.8 mm hexagonal pocket takes a 5.5 mm nut with 0.15 mm to spare and blocks it."""
+    block = trimesh.creation.box(extents=[20.0, 20.0, 10.0])
+    pocket = trimesh.creation.cylinder(radius=2.9 / np.cos(np.pi / 6), height=12.0, sections=6)
+    p = jp.profile(block.difference(pocket, engine="manifold"), np.zeros(3),
+                   np.array([0, 0, 1.0]), -5.0, 5.0)
+    clear, blocked = jp.hex_fit(p, -4.0, 4.0, 5.5)
+    assert clear == pytest.approx(0.15, abs=0.01) and blocked == 1.0
+    assert jp.hex_fit(p, -4.0, 4.0, 6.0)[0] < 0  # a 6 mm nut does not go in
+
+
+# --- the five examples, exported as a maker would -------------------------------------------
+
+@pytest.mark.parametrize("name", [pytest.param(n, marks=() if n == "tv8" else pytest.mark.slow)
+                                  for n in EXAMPLES])
+def test_plain_export_passes_the_independent_checks(name, tmp_path):
+    out = tmp_path / name
+    run = subprocess.run([sys.executable, "-m", "app.cli.main", "export",
+                          f"assets/designs/{name}.json", "--out", str(out), "--quiet"],
+                         cwd=ROOT, capture_output=True, text=True, timeout=900)
+    if not (out / "result.json").exists():
+        pytest.skip(f"the export does not write the printed loop's folder yet (exit "
+                    f"{run.returncode}: {run.stderr.strip()[-200:]})")
+    found = pc.check_export(out)
+    assert not found["failures"], "\n".join(found["failures"] + [json.dumps(pc.summary(found))])
+
+
+# --- a good export damaged: each damage is reported --------------------------------------------
+
+@pytest.fixture
+def sample(tmp_path) -> Path:
+    folder = tmp_path / "export"
+    shutil.copytree(SAMPLE, folder)
+    return folder
+
+
+def _write(mesh: trimesh.Trimesh, path: Path) -> None:
+    path.write_bytes(trimesh.exchange.stl.export_stl(mesh))
+
+
+def test_sample_is_a_good_export(sample):
+    found = pc.check_export(sample, collisions=False)
+    assert not found["failures"], "\n".join(found["failures"])
+
+
+def test_thinner_bar_is_reported(sample):
+    ex = load_export(sample)
+    link, a, b = pc.bars(ex)[2]
+    axis = (b - a) / np.linalg.norm(b - a)
+    width = pc.check_bars(ex)[0][2]["min_width_mm"]
+    shrink = 0.8 * pc.MIN_WIDTH_MM / width  # the bar ends 80 % of the least width
+    mesh = ex.links[link].copy()
+    along = (mesh.vertices - a) @ axis
+    across = mesh.vertices - a - along[:, None] * axis
+    mesh.vertices = a + along[:, None] * axis + shrink * across
+    _write(mesh, sample / f"link_{link}.stl")
+    rows, fails = pc.check_bars(load_export(sample))
+    assert rows[2]["min_width_mm"] == pytest.approx(shrink * width, rel=1e-3)
+    assert any(f.startswith(f"bar: link {link} is ") for f in fails)
+
+
+def test_shrunk_base_plate_is_reported(sample):
+    ex = load_export(sample)
+    w = ex.world_from_home()
+    plate = ex.mesh("base_plate")
+    rod = pc.check_stand(ex)[0]["rod"]
+    centre = (w[:3, :3] @ np.asarray(rod["bottom"]) + w[:3, 3])[:2]
+    world = plate.vertices @ w[:3, :3].T + w[:3, 3]
+    world[:, :2] = centre + 0.25 * (world[:, :2] - centre)  # a quarter of the plate's size
+    plate.vertices = (world - w[:3, 3]) @ w[:3, :3]
+    _write(plate, sample / "base_plate.stl")
+    figures, fails = pc.check_stand(load_export(sample))
+    assert figures["com_margin_share"] < printed_stand.MARGIN_SHARE
+    assert any(f.startswith("stand: the centre of mass comes") for f in fails)
+
+
+def test_part_tilted_on_the_bed_is_reported(sample):
+    path = next(p for p in printed_layout.plate_files(sample)
+                if any(n.startswith("link_") for n in trimesh.load(p).geometry))
+    scene = trimesh.load(path)
+    name = next(n for n in scene.geometry if n.startswith("link_"))
+    mesh = scene.geometry[name]
+    mesh.apply_transform(trimesh.transformations.rotation_matrix(np.radians(35), [1, 0, 0],
+                                                                mesh.centroid))
+    mesh.apply_translation([0, 0, -mesh.bounds[0, 2]])
+    path.write_bytes(scene.export(file_type="3mf"))
+    figures, fails = pc.check_layout(load_export(sample))
+    row = next(r for r in figures["parts"] if r["name"] == name)
+    assert row["support_share"] > printed_layout.MAX_SUPPORT_SHARE
+    assert any(f.startswith(f"print: {name} needs support") for f in fails)
+
+
+def test_filled_bore_is_reported(sample):
+    ex = load_export(sample)
+    jt = ex.report["joints"][0]
+    lo, hi = jt["bosses_mm"][1]
+    o, a = np.asarray(jt["origin_mm"]), np.asarray(jt["axis"])
+    plug = trimesh.creation.cylinder(radius=jt["axle_diameter_mm"], sections=32,
+                                     segment=[o + a * (lo - 1), o + a * (hi + 1)])
+    link = ex.links[1]
+    solid = m3.Manifold(m3.Mesh(vert_properties=np.asarray(link.vertices, np.float32),
+                                tri_verts=np.asarray(link.faces, np.uint32)))
+    plugged = solid + m3.Manifold(m3.Mesh(vert_properties=np.asarray(plug.vertices, np.float32),
+                                          tri_verts=np.asarray(plug.faces, np.uint32)))
+    out = plugged.to_mesh()
+    _write(trimesh.Trimesh(out.vert_properties[:, :3], out.tri_verts), sample / "link_1.stl")
+    figures, fails, _ = pc.check_joint(load_export(sample), 0, ex.report["sizing"]["wall_mm"])
+    assert figures["links"][1]["engagement_mm"] == 0.0
+    assert any(f.startswith("joint 0: link 1 material inside the screw") for f in fails)
+    assert any(f.startswith("joint 0: link 1 holds the") for f in fails)
+    assert not any(f.startswith("joint 0: link 0") for f in fails)  # the other link is whole
