@@ -113,9 +113,10 @@ def summary_line(report: dict) -> str:
     sz, v, b = report["sizing"], report["verification"], report.get("base")
     widths = sz["bar_width_mm"]
     mass = sum(p["mass_g"] for p in report["parts"])
-    joint = report["joints"][0]
+    kinds = [j["kind"] for j in report["joints"] if j["kind"] != "rod"]
+    kind = max(set(kinds), key=kinds.count) if kinds else "rod"
     hardware = {"m2": "M2 screws", "m3": "M3 screws", "m4": "M4 screws",
-                "printed-pin": "printed pins"}.get(joint["kind"], joint["kind"])
+                "printed-pin": "printed pins"}.get(kind, kind)
     base = "no base" if b is None else (
         f"stands on a {b['plate_diameter_mm']:.0f} mm plate" if b["stands"]
         else "base to screw down")

@@ -38,10 +38,14 @@ from paraloop_core.errors import FabricationError
 from paraloop_core.fabrication import profiles
 from paraloop_core.fabrication.profiles import Fastener, Printer, Rod
 
-#: Extra depth (mm) of a recess beyond the hardware it holds.
+#: Extra depth (mm) of a recess beyond the hardware it holds, and of its width over the nut's
+#: flats or the head's diameter.
 RECESS_MM = 0.3
-#: Least boss length (mm) past a joint point.
+SEAT_MM = 0.3
+#: Least boss length (mm) past a joint point, and as a share of the bar's corner radius there
+#: (a bar's end standing out past the boss's outer face is trimmed to it).
 MIN_OUTER_MM = 0.5
+COVER = 0.6
 #: Thread (mm) that must pass the lock nut's insert.
 PROTRUDE_MM = 1.0
 
@@ -135,10 +139,19 @@ def bore_radius(kind: str, printer: Printer, rod: Rod | None = None, fixed: bool
     return (fastener_of(kind).hole_mm + printer.hole_allowance_mm) / 2
 
 
+def pocket_radius(kind: str, printer: Printer) -> float:
+    """Largest radius (mm) of a joint kind's recesses (the nut trap's corners, the head's
+    seat; 0 without recesses)."""
+    if kind not in profiles.FASTENERS:
+        return 0.0
+    f = fastener_of(kind)
+    return max((f.nut_af_mm + SEAT_MM) / np.sqrt(3.0), f.head_d_mm / 2 + SEAT_MM)
+
+
 def min_boss_radius(kind: str, printer: Printer, rod: Rod | None = None) -> float:
     """Smallest boss radius (mm): the widest bore with a wall around it, and room for the
     washer, head or cap seat."""
-    wall = bore_radius(kind, printer, rod) + printer.wall_mm
+    wall = max(bore_radius(kind, printer, rod), pocket_radius(kind, printer)) + printer.wall_mm
     if kind in profiles.FASTENERS:
         return max(wall, fastener_of(kind).washer_d_mm / 2)
     return wall
@@ -197,8 +210,9 @@ def layout(index: int, origin: np.ndarray, far: np.ndarray, axis: np.ndarray,
     # and then its axle over ``want``; a bar's end may stand out past the boss (it lies in
     # the bar's own capsule), the recess's pocket is cut through it
     near, far_pocket = recess_mm(kind)
-    o_lo = max(near + want - (m - gap / 2), MIN_OUTER_MM)
-    o_up = max(far_pocket + want - (length - m - gap / 2), MIN_OUTER_MM)
+    # and covers most of its bar's end (what stands out past the face is trimmed off)
+    o_lo = max(near + want - (m - gap / 2), MIN_OUTER_MM, COVER * radii[0])
+    o_up = max(far_pocket + want - (length - m - gap / 2), MIN_OUTER_MM, COVER * radii[1])
     s0, s3 = -o_lo, length + o_up
     screw, pieces = None, []
     c = printer.clearance_mm

@@ -20,9 +20,9 @@ from dataclasses import dataclass
 import numpy as np
 import trimesh
 
+from paraloop_core.errors import FabricationError
 from paraloop_core.fabrication import bed, profiles, sizing
-from paraloop_core.fabrication.joints import Joint
-from paraloop_core.fabrication.parts import SEAT_MM
+from paraloop_core.fabrication.joints import SEAT_MM, Joint
 
 #: Steepest overhang (degrees from the vertical) printed without support.
 OVERHANG_DEG = 45.0
@@ -57,26 +57,32 @@ def support(vertices: np.ndarray, faces: np.ndarray, down: np.ndarray) -> tuple[
 def wall_slack(down: np.ndarray, flat: float, joints: list[tuple[Joint, bool]],
                printer: profiles.Printer) -> float:
     """Least room (mm) that cutting at ``n . x = flat`` (``down = n``) leaves: each bore keeps
-    ``wall`` over its held length, each recess floor its seat (< 0: the cut breaks in).
-    ``joints``: the link's (joint, upper side) pairs."""
+    the profile's wall over its boss, each recess (head seat, nut trap) its wall too (< 0:
+    the cut breaks in). ``joints``: the link's (joint, upper side) pairs. The distance to the
+    cut is linear along an axis, so each stretch's two ends decide."""
     n = np.asarray(down, float)
+    wall = printer.wall_mm
     slack = np.inf
     for j, upper in joints:
         s0, s1 = j.upper if upper else j.lower
         recess = j.recess[1 if upper else 0]
-        held = (s0, s1 - recess) if upper else (s0 + recess, s1)
         floor = s1 - recess if upper else s0 + recess
         bore = j.bore[1 if upper else 0]
-        dist = [flat - float(n @ j.at(s)) for s in held]
-        slack = min(slack, min(dist) - bore - printer.wall_mm)
-        if recess > 0:
-            seat = pocket_radius(j, upper) + 0.5 * printer.wall_mm
-            slack = min(slack, flat - float(n @ j.at(floor)) - seat)
+        stretches = [((s0, floor), bore), ((floor, s1), pocket_radius(j, upper))] if upper \
+            else [((s0, floor), pocket_radius(j, upper)), ((floor, s1), bore)]
+        for (a, b), radius in stretches:
+            if recess == 0 and radius != bore:
+                continue
+            dist = min(flat - float(n @ j.at(a)), flat - float(n @ j.at(b)))
+            slack = min(slack, dist - radius - wall)
     return slack
 
 
 def pocket_radius(j: Joint, upper: bool) -> float:
-    """Radius (mm) of a screw joint's recess: the nut trap's corners or the head's seat."""
+    """Radius (mm) of a screw joint's recess: the nut trap's corners or the head's seat (the
+    bore's for other joints)."""
+    if j.kind not in profiles.FASTENERS:
+        return j.bore[1 if upper else 0]
     f = profiles.FASTENERS[j.kind]
     return (f.nut_af_mm + SEAT_MM) / np.sqrt(3.0) if upper else f.head_d_mm / 2 + SEAT_MM
 
@@ -110,7 +116,10 @@ def choose_down(bar: tuple[np.ndarray, np.ndarray], radius: float,
         return downs[k], float(slack[k])
     best, best_area = ok[0], np.inf
     for k in ok[:: max(1, int(np.ceil(len(ok) / TRIALS)))]:
-        mesh = build(downs[k]).to_mesh()
+        try:
+            mesh = build(downs[k]).to_mesh()
+        except FabricationError:  # a cut of this trial leaves it in pieces: not this one
+            continue
         area, _ = support(mesh.vert_properties[:, :3], mesh.tri_verts, downs[k])
         if area < best_area - 1e-6:
             best, best_area = k, area

@@ -29,15 +29,13 @@ import numpy as np
 
 from paraloop_core.errors import FabricationError
 from paraloop_core.fabrication import profiles
-from paraloop_core.fabrication.joints import Joint
+from paraloop_core.fabrication.joints import SEAT_MM, Joint
 from paraloop_core.fabrication.voxelspace import point_segment_distance
 
 #: Polygon segments of round solids (bosses, bores) and the zone margin they need.
 SEGMENTS = 48
 #: Margin (mm) of every cut past what it clears: the polygon error of the round solids.
 EPS_MM = 0.05
-#: Extra clearance (mm) of a recess for hardware (head, nut) over the hardware.
-SEAT_MM = 0.3
 #: Thinnest printed wall anywhere (mm): sheets of an open end-effector are this thick.
 MIN_WALL_MM = 0.8
 
@@ -116,6 +114,26 @@ def zone_cut(j: Joint, upper: bool, c: float, n: int = SEGMENTS) -> m3d.Manifold
     return _axis(j, j.split - j.gap / 2, hi + c + 1.0, r, n)
 
 
+def outward(bar: np.ndarray, away: np.ndarray, r: float, within: float) -> float:
+    """How far (mm) along ``away`` (the joint axis, outwards) a bar of radius ``r`` leaving
+    the joint point along ``bar`` has material ``within`` mm of the axis."""
+    n = float(np.linalg.norm(bar))
+    a = float(bar @ away) / n if n > 0 else 0.0
+    q = np.sqrt(max(1.0 - a * a, 0.0))
+    if a <= 0.0:
+        return r * q
+    return a * min(n, (within + r) / max(q, 1e-12)) + r * q
+
+
+def outer_cut(j: Joint, upper: bool, c: float, far: float, n: int = SEGMENTS) -> m3d.Manifold:
+    """What a link's body loses past its boss's outer face at joint ``j``: within the boss
+    radius plus ``c`` of the axis, ``far`` mm on (a bar's end standing out past the face)."""
+    r = j.boss_radius + c + EPS_MM
+    if upper:
+        return _axis(j, j.upper[1], j.upper[1] + far, r, n)
+    return _axis(j, j.lower[0] - far, j.lower[0], r, n)
+
+
 def holes(j: Joint, upper: bool, far: float, n: int = SEGMENTS) -> m3d.Manifold:
     """Bore, recess and, for the grounding rod, the way out, of one side of joint ``j``;
     ``far`` (mm) how far past the joint the pockets must run to leave any bar end."""
@@ -180,8 +198,17 @@ def link_part(i: int, bars: np.ndarray, radius: float, down: np.ndarray,
     body = body - zone_cut(lower, False, printer_c, n) - zone_cut(upper, True, printer_c, n)
     body = m3d.Manifold.batch_boolean([body, boss(lower, False, n), boss(upper, True, n)],
                                       m3d.OpType.Add)
-    far = 3.0 * radius + 10.0
-    body = body - holes(lower, False, far, n) - holes(upper, True, far, n)
+    # past each boss's outer face: a bar's end standing out is trimmed to the face (clean
+    # faces for the head and the nut) unless the bar itself leaves that way, then the holes
+    # run out through it (and the grounding rod's through anything of its own link)
+    ends = ((lower, False, bars[-1][0] - bars[-1][1]), (upper, True, bars[0][1] - bars[0][0]))
+    for j, up, vec in ends:
+        away = j.w if up else -j.w
+        if outward(vec, away, radius, j.boss_radius + printer_c + EPS_MM) <= radius + 1.0:
+            body = body - outer_cut(j, up, printer_c, radius + 1.0, n)
+        out = 3.0 * radius + 10.0 if j.kind == "rod" else \
+            outward(vec, away, radius, j.reach + EPS_MM) + 1.0
+        body = body - holes(j, up, out, n)
     # the print flat: nothing past the bar's down face
     face = np.asarray(down, float)
     level = float(np.max(bars.reshape(-1, 3) @ face)) + radius * np.sqrt(3.0) / 2

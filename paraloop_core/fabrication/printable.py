@@ -98,13 +98,16 @@ def _stage(progress: Progress | None, lo: float, hi: float) -> Progress | None:
     return lambda f, msg: progress(lo + (hi - lo) * f, msg)
 
 
-def predicted_fit(plan: sizing.Plan, points: np.ndarray, printer: Printer) -> float:
+def predicted_fit(plan: sizing.Plan, points: np.ndarray, printer: Printer,
+                  extra: dict[int, np.ndarray] | None = None) -> float:
     """By how much the links of ``plan`` may still grow and fit the bed (<= 1: they do not
-    fit): each link's bar (with its width) and bosses, a box along its principal axes."""
+    fit): each link's bar (with its width) and bosses, a box along its principal axes;
+    ``extra`` more points per link (design units: the end-effector's vertices on link 3)."""
     pts = np.asarray(points, float) * plan.scale
     worst = np.inf
     for i in range(6):
-        cloud = [pts[2 * i], pts[2 * i + 1]]
+        cloud = [pts[2 * i], pts[2 * i + 1], *(np.asarray((extra or {}).get(i, np.zeros((0, 3))),
+                                                          float) * plan.scale)]
         for j, (s0, s1) in ((plan.layouts[i], plan.layouts[i].lower),
                             (plan.layouts[(i - 1) % 6], plan.layouts[(i - 1) % 6].upper)):
             cloud += [j.at(s0), j.at(s1)]
@@ -127,16 +130,18 @@ def kind_of(plan: sizing.Plan) -> str:
     return plan.layouts[0].kind
 
 
-def _plan(real: Realization, opts: Options, size_mm: float | None = None) -> sizing.Plan:
+def _plan(real: Realization, opts: Options, size_mm: float | None = None,
+          ee: object | None = None) -> sizing.Plan:
     """:func:`sizing.plan` with the options' joints (``auto``: :data:`profiles.AUTO_JOINTS`
     in turn, the first that reaches the best level); ``size_mm`` overrides the options'."""
     kinds = profiles.AUTO_JOINTS if opts.joints == "auto" else (opts.joints,)
+    extra = None if ee is None else {3: ee.effector.vertices}
     best, error = None, None
     for kind in kinds:
         try:
             p = sizing.plan(real, opts.printer, opts.material, kind, opts.rod,
                             size_mm=size_mm or opts.size_mm,
-                            fit=lambda q: predicted_fit(q, real.points, opts.printer))
+                            fit=lambda q: predicted_fit(q, real.points, opts.printer, extra))
         except FabricationError as exc:
             error = error or exc
             continue
@@ -167,7 +172,7 @@ def choose(candidates: Iterable[Candidate], opts: Options, progress: Progress | 
                 why = joints.in_place_refusal(loops.factor_axes(real.joint_factors))
                 raise FabricationError(why or "print-in-place is not built by paraloop",
                                        "bad-parameters")
-            plan = _plan(real, opts)
+            plan = _plan(real, opts, ee=ee)
         except (RealizationError, FabricationError) as exc:
             if opts.joints == "print-in-place":
                 raise

@@ -136,11 +136,12 @@ def bar_cap(size_mm: float) -> float:
 def min_radii(b: Bounds, k: float, printer: Printer, kind: str, level: int) -> np.ndarray:
     """Thinnest bar corner radius ``(6,)`` (mm) at ``k`` mm per unit at a :data:`LEVELS`
     level: the width and length per width (the aims, the floors, or none at the last level)
-    and a wall between the bore and the bar's flat underside (the part is printed on that flat:
-    its bosses are cut to it)."""
-    flat = (joints.bore_radius(kind, printer) + printer.wall_mm) / APOTHEM
-    if level >= 3:
-        return np.full(6, flat)
+    and a wall between the bore or a recess and the bar's flat underside (the part is printed on
+    that flat: its bosses are cut to it)."""
+    bore = joints.bore_radius(kind, printer)
+    if level >= 3:  # the bore's wall only: a recess may then stop the print flat's cut
+        return np.full(6, (bore + printer.wall_mm) / APOTHEM)
+    flat = (max(bore, joints.pocket_radius(kind, printer)) + printer.wall_mm) / APOTHEM
     width, lw = (WIDTH_AIM_MM, LW_AIM) if level == 0 else (WIDTH_MM, LW_MAX)
     return np.maximum.reduce([np.full(6, width / FLATS), b.bar_lengths * k / (lw * FLATS),
                               np.full(6, flat)])
