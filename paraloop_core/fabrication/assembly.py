@@ -13,7 +13,7 @@ from dataclasses import dataclass, field, replace
 import manifold3d as m3d
 import numpy as np
 
-from paraloop_core.fabrication import layout, parts, sizing
+from paraloop_core.fabrication import flat, layout, parts, sizing
 from paraloop_core.fabrication.joints import Joint
 from paraloop_core.fabrication.parts import Part
 from paraloop_core.fabrication.profiles import Printer
@@ -103,15 +103,24 @@ def _link(plan: sizing.Plan, i: int, bars: np.ndarray, layouts: tuple[Joint, ...
     main = (bars[0][0], bars[-1][1])
     if down is None:
         down, slack = layout.choose_down(
-            main, r, sides, printer, lambda d: make(d, n=TRIAL_SEGMENTS).manifold)
+            main, r, sides, printer, lambda d, cut: make(d, cut, TRIAL_SEGMENTS).manifold,
+            None if extra is None else _faces(extra))
     else:
-        flat = float(np.max(bars.reshape(-1, 3) @ down)) + r * sizing.APOTHEM
-        slack = layout.wall_slack(down, flat, sides, printer)
+        level = float(np.max(bars.reshape(-1, 3) @ down)) + r * sizing.APOTHEM
+        slack = flat.wall_slack(down, level, sides, printer.wall_mm)
     for more in RETESSELLATE:  # another tessellation where a boolean pinched the solid
         part = make(down, bool(slack >= 0), parts.SEGMENTS + more)
         if not parts.pinched(part.manifold):
             break
     return part, float(slack)
+
+
+def _faces(solid: m3d.Manifold) -> np.ndarray:
+    """``(2, 3)``: the two directions across an end-effector solid's thinnest extent (a panel
+    laid on its face)."""
+    v = np.asarray(solid.to_mesh().vert_properties[:, :3], float)
+    normal = np.linalg.svd(v - v.mean(axis=0), full_matrices=False)[2][-1]
+    return np.stack([normal, -normal])
 
 
 def build_links(plan: sizing.Plan, bars: list[np.ndarray], printer: Printer,
@@ -152,9 +161,9 @@ def relay(asm: Assembly, j: int, joint: Joint) -> Assembly:
         # the link's print flat stays where it still leaves every bore its wall
         keep = asm.parts[i].down
         r = float(asm.plan.radii[i])
-        flat = float(np.max(asm.bars[i].reshape(-1, 3) @ keep)) + r * sizing.APOTHEM
+        level = float(np.max(asm.bars[i].reshape(-1, 3) @ keep)) + r * sizing.APOTHEM
         sides = [(layouts[i], False), (layouts[(i - 1) % 6], True)]
-        down = keep if layout.wall_slack(keep, flat, sides, asm.printer) >= 0 else None
+        down = keep if flat.wall_slack(keep, level, sides, asm.printer.wall_mm) >= 0 else None
         new_parts[i], slack[i] = _link(asm.plan, i, asm.bars[i], layouts, asm.printer,
                                        asm.extras, down)
         parts.check_solid(new_parts[i].manifold, new_parts[i].name)

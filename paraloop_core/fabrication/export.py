@@ -80,7 +80,7 @@ def bill_of_materials(asm: Assembly, material: profiles.Material) -> list[dict]:
             f = profiles.FASTENERS[j.kind]
             hw[f"{f.name} x {j.screw_mm:g} mm socket head cap screw (ISO 4762)"] += 1
             hw[f"{f.name} nylon-insert lock nut (DIN 985)"] += 1
-            hw[f"{f.name} washer (ISO 7089, {f.washer_d_mm:g} x {f.washer_t_mm:g} mm)"] += 1
+            hw[f"{f.name} washer (ISO 7089, {f.washer_d_mm:g} x {f.washer_t_mm:g} mm)"] += 3
     rows = [{"item": k, "quantity": v, "for": "joints"} for k, v in sorted(hw.items())]
     for h in asm.hardware:
         if h.role.endswith(" rod"):

@@ -19,13 +19,13 @@ def _joint_text(j, kind: str, first: int) -> str:
     a, b = j.index, (j.index + 1) % 6
     if kind in profiles.FASTENERS:
         f = profiles.FASTENERS[kind]
-        return (f"Joint {a} joins link {a} and link {b}: put the {f.name} x {j.screw_mm:g} mm "
-                f"screw into the counterbore of link {a} (head side), slide the washer on "
-                f"between the two bosses, push the screw through link {b} and press the lock "
-                f"nut into link {b}'s hexagonal trap. Turn the screw until the nut's nylon "
-                "ring grips, then only until the links touch the washer without play; the "
-                "joint must still turn freely (the screw turns with the nut, so it never "
-                "loosens).")
+        return (f"Joint {a} joins link {a} and link {b}: put a washer on the {f.name} x "
+                f"{j.screw_mm:g} mm screw and push it through link {a} (head side), slide the "
+                f"thrust washer on between the two bosses, push the screw through link {b}, "
+                "put the third washer on and turn the lock nut on until its nylon ring grips, "
+                "then only until the bosses touch the washers without play (a hex key in the "
+                f"head, a {f.nut_af_mm:g} mm spanner on the nut); the joint must still turn "
+                "freely. The nylon ring holds the nut where you left it.")
     if kind == "printed-pin":
         return (f"Joint {a} joins link {a} and link {b}: push the printed pin_{a} through "
                 f"link {a} (head side) and link {b}, then press the printed pin cap onto its "

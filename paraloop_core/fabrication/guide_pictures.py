@@ -246,7 +246,7 @@ def assembly_scenes(asm: Assembly) -> list[tuple[str, Scene]]:
     ``guide_loop.png`` (the assembled loop on its base, links named, joints numbered),
     ``guide_joint_<j>.png`` (joint j pulled apart: the screw or pin, link j, the thrust washer,
     link j+1, the nut or cap; axle and nut highlighted, each boss see-through so its bore and
-    recess show) and ``guide_base.png`` (the rod and the plate)."""
+    faces show) and ``guide_base.png`` (the rod and the plate)."""
     by_link = {i: [p for p in asm.parts if p.link == i and p.role == "link"] for i in range(6)}
     # pictures of the standing sculpture: everything in the world of its base
     world = np.eye(4) if asm.base is None else asm.base.world_from_home()
@@ -300,7 +300,7 @@ def _groups(asm: Assembly, jt, meshes: dict, world: np.ndarray
     near = [Piece(f"link {a}", meshes[f"link_{a}"], _rgb(LINK_COLORS[a]), alpha=0.45)]
     far = [Piece(f"link {b}", meshes[f"link_{b}"], _rgb(LINK_COLORS[b]), alpha=0.45)]
     groups: list[tuple[list[Piece], float]] = [(near, 0.0), (far, pull)]
-    names = {"screw": "screw", "screw head": "", "lock nut": "lock nut (into its trap)",
+    names = {"screw": "screw", "screw head": "", "lock nut": "lock nut",
              "thrust washer": "washer"}
     axle = [h for h in hard if h.role in ("screw", "screw head") or h.role.endswith(" rod")]
     if axle:
@@ -310,6 +310,10 @@ def _groups(asm: Assembly, jt, meshes: dict, world: np.ndarray
     for h in hard:
         if h.role == "thrust washer":
             groups.append(([Piece("washer", _tm(h.solid), STEEL)], 0.5 * pull))
+        if h.role == "washer":  # under the head (before link j) or the nut (after link j+1)
+            head_side = float((h.capsule[0] - jt.origin) @ jt.w) < jt.split
+            groups.append(([Piece("washer", _tm(h.solid), STEEL)],
+                           -0.5 * pull if head_side else 1.5 * pull))
         if h.role == "lock nut":
             groups.append(([Piece(names[h.role], _tm(h.solid), NUT_COLOR, focus=True)],
                            2.0 * pull))

@@ -7,14 +7,16 @@ Joint j (axis ``A_j``) joins link j (its bar ends at ``E_j``) and link j+1 (its 
 * link j's boss is ``s in [-o_lo, m - g/2]``, link j+1's ``[m + g/2, P + o_up]``: the split
   ``m`` (:func:`split_point`) keeps each bar on its own side; ``g`` is the axial gap (the
   thrust washer of a screw joint, the printer's clearance otherwise); the outer extensions
-  ``o`` make each boss hold its axle :data:`profiles.ENGAGE_TARGET` diameters beyond its
-  recess;
-* kind ``m3``/``m4``: a socket head screw through both bosses (clearance bores): its head
-  sunk in a counterbore of link j's boss, a thrust washer between the bosses, a
-  nylon-insert lock nut in a hexagonal trap of link j+1's boss (the nut turns with link j+1,
-  the insert keeps the screw from turning in it, so the joint neither loosens nor tightens as
-  it turns round and round); the stock screw length is chosen and link j+1's boss grows so
-  that the tip passes the nut by :data:`PROTRUDE_MM`;
+  ``o`` make each boss hold its axle :data:`profiles.ENGAGE_TARGET` diameters;
+* kind ``m3``/``m4``: a socket head screw through both bosses (clearance bores), a washer
+  under its head on link j's boss's outer face, a thrust washer between the bosses, a washer
+  and a nylon-insert lock nut on link j+1's outer face (the insert holds the nut on the
+  screw, so the joint neither loosens nor tightens as it turns round and round). The
+  hardware sits outside the bosses, not sunk in recesses: a boss then needs a wall only
+  around its bore, so a link's print flat can cut its bosses (:mod:`flat`) where a head's
+  counterbore or a nut's trap would break open, and no trap has to fit a nut to a tenth of a
+  millimetre. The stock screw length is chosen; its tip passes the nut by at least
+  :data:`PROTRUDE_MM`;
 * kind ``printed-pin``: a printed pin (head + shaft) through both bosses, a printed cap
   pressed on its end;
 * kind ``rod``: the grounded joint: the grounding rod is the axle, fixed (press fit, glued) in
@@ -38,9 +40,7 @@ from paraloop_core.errors import FabricationError
 from paraloop_core.fabrication import profiles
 from paraloop_core.fabrication.profiles import Fastener, Printer, Rod
 
-#: Extra depth (mm) of a recess beyond the hardware it holds, and of its width over the nut's
-#: flats or the head's diameter.
-RECESS_MM = 0.3
+#: Radial room (mm) left around the hardware outside a boss (washers, head, nut).
 SEAT_MM = 0.3
 #: Least boss length (mm) past a joint point, and as a share of the bar's corner radius there
 #: (a bar's end standing out past the boss's outer face is trimmed to it).
@@ -85,8 +85,6 @@ class Joint:
     notch: tuple[float, float]
     #: the side the grounding rod leaves from (0: past link j's boss, 1: past link j+1's)
     rod_side: int | None = None
-    #: depth (mm) of the recesses at the outer ends of link j's and link j+1's bosses
-    recess: tuple[float, float] = (0.0, 0.0)
 
     def at(self, s: float | np.ndarray) -> np.ndarray:
         """Points ``(..., 3)`` at axial coordinates ``s``."""
@@ -94,9 +92,8 @@ class Joint:
 
     @property
     def engagement(self) -> tuple[float, float]:
-        """Length (mm) of the axle held in each boss (the bore beyond the recesses)."""
-        return (self.lower[1] - self.lower[0] - self.recess[0],
-                self.upper[1] - self.upper[0] - self.recess[1])
+        """Length (mm) of the axle held in each boss."""
+        return self.lower[1] - self.lower[0], self.upper[1] - self.upper[0]
 
     @property
     def extent(self) -> tuple[float, float]:
@@ -139,22 +136,26 @@ def bore_radius(kind: str, printer: Printer, rod: Rod | None = None, fixed: bool
     return (fastener_of(kind).hole_mm + printer.hole_allowance_mm) / 2
 
 
-def pocket_radius(kind: str, printer: Printer) -> float:
-    """Largest radius (mm) of a joint kind's recesses (the nut trap's corners, the head's
-    seat; 0 without recesses)."""
-    if kind not in profiles.FASTENERS:
-        return 0.0
-    f = fastener_of(kind)
-    return max((f.nut_af_mm + SEAT_MM) / np.sqrt(3.0), f.head_d_mm / 2 + SEAT_MM)
-
-
 def min_boss_radius(kind: str, printer: Printer, rod: Rod | None = None) -> float:
-    """Smallest boss radius (mm): the widest bore with a wall around it, and room for the
-    washer, head or cap seat."""
-    wall = max(bore_radius(kind, printer, rod), pocket_radius(kind, printer)) + printer.wall_mm
+    """Smallest boss radius (mm): the bore with a wall around it, and a face the washers bear
+    on."""
+    wall = bore_radius(kind, printer, rod) + printer.wall_mm
     if kind in profiles.FASTENERS:
         return max(wall, fastener_of(kind).washer_d_mm / 2)
     return wall
+
+
+def outward(bar: np.ndarray, away: np.ndarray, r: float, within: float) -> float:
+    """How far (mm) along ``away`` (a unit vector on the joint axis) a bar of radius ``r``
+    leaving the joint point along ``bar`` has material ``within`` mm of the axis: with axial
+    slope ``a`` and radial slope ``q``, ``a (within + r) / q + r q`` (at most its length);
+    its section only where it leans away."""
+    n = float(np.linalg.norm(bar))
+    a = float(bar @ away) / n if n > 0 else 0.0
+    q = np.sqrt(max(1.0 - a * a, 0.0))
+    if a <= 0.0:
+        return r * q
+    return a * min(n, (within + r) / max(q, 1e-12)) + r * q
 
 
 def split_point(length: float, lower: np.ndarray, upper: np.ndarray, w: np.ndarray,
@@ -168,16 +169,9 @@ def split_point(length: float, lower: np.ndarray, upper: np.ndarray, w: np.ndarr
     of the split; where both bars lean over the pin the split goes to the middle of the
     conflict and ``notch`` says how far each still reaches over (the zone cut notches it)."""
 
-    def reach(bar: np.ndarray, toward: np.ndarray, r: float) -> float:
-        n = float(np.linalg.norm(bar))
-        a = float(bar @ toward) / n if n > 0 else 0.0
-        if a <= 0.0:
-            return r * np.sqrt(max(1.0 - a * a, 0.0))  # leans away: its section only
-        q = np.sqrt(max(1.0 - a * a, 0.0))
-        return a * min(n, (boss + gap + eps + r) / max(q, 1e-12)) + r * q
-
-    lo = reach(lower, w, radii[0]) + gap / 2 + eps  # link j's bar needs m >= lo
-    hi = length - reach(upper, -w, radii[1]) - gap / 2 - eps  # link j+1's bar needs m <= hi
+    zone = boss + gap + eps
+    lo = outward(lower, w, radii[0], zone) + gap / 2 + eps  # link j's bar needs m >= lo
+    hi = length - outward(upper, -w, radii[1], zone) - gap / 2 - eps  # link j+1's: m <= hi
     m = float(np.clip(length / 2, lo, hi) if lo <= hi else (lo + hi) / 2)
     return m, (max(0.0, lo - m), max(0.0, m - hi))
 
@@ -206,18 +200,15 @@ def layout(index: int, origin: np.ndarray, far: np.ndarray, axis: np.ndarray,
     m, notch = split_point(length, bars[0], bars[1], w, radii, boss, gap, eps)
     d = axle_diameter(kind, rod)
     want = profiles.ENGAGE_TARGET * d
-    # each boss holds the recess at its outer end (screws: the head's seat, the nut's trap)
-    # and then its axle over ``want``; a bar's end may stand out past the boss (it lies in
-    # the bar's own capsule), the recess's pocket is cut through it
-    near, far_pocket = recess_mm(kind)
-    # and covers most of its bar's end (what stands out past the face is trimmed off)
-    o_lo = max(near + want - (m - gap / 2), MIN_OUTER_MM, COVER * radii[0])
-    o_up = max(far_pocket + want - (length - m - gap / 2), MIN_OUTER_MM, COVER * radii[1])
+    # each boss holds its axle over ``want`` and covers most of its bar's end (what stands
+    # out past the face is trimmed off)
+    o_lo = max(want - (m - gap / 2), MIN_OUTER_MM, COVER * radii[0])
+    o_up = max(want - (length - m - gap / 2), MIN_OUTER_MM, COVER * radii[1])
     s0, s3 = -o_lo, length + o_up
     screw, pieces = None, []
     c = printer.clearance_mm
     if kind in profiles.FASTENERS:
-        screw, pieces, s3 = _screw_pieces(index, fastener_of(kind), s0, s3, m, gap)
+        screw, pieces = _screw_pieces(index, fastener_of(kind), s0, s3, m, gap)
     elif kind == "printed-pin":
         head = boss - 0.5
         pieces = [Piece(s0 - profiles.PRINTED_HEAD_H_MM, s0, head, "pin head", printed=True),
@@ -241,28 +232,17 @@ def layout(index: int, origin: np.ndarray, far: np.ndarray, axis: np.ndarray,
     bores = tuple(bore_radius(kind, printer, rod, fixed == k) for k in (0, 1))
     return Joint(index, kind, origin, w, length, m, gap, float(boss), (s0, m - gap / 2),
                  (m + gap / 2, s3), bores, tuple(pieces), d, screw, notch,
-                 None if kind != "rod" else (rod_side or 0), (near, far_pocket))
-
-
-def recess_mm(kind: str) -> tuple[float, float]:
-    """Depth (mm) of the recess at link j's boss's outer end (screw: washer and head in a
-    counterbore) and at link j+1's (screw: the lock nut in a hexagonal trap); 0 for the printed
-    pin and the rod, whose head and cap sit outside."""
-    if kind in profiles.FASTENERS:
-        f = fastener_of(kind)
-        return f.head_h_mm + RECESS_MM, f.nut_h_mm + RECESS_MM
-    return 0.0, 0.0
+                 None if kind != "rod" else (rod_side or 0))
 
 
 def _screw_pieces(index: int, f: Fastener, s0: float, s3: float, m: float, gap: float
-                  ) -> tuple[float, list[Piece], float]:
-    """Stock screw length, the hardware pieces and the far boss end (grown so the screw's
-    tip passes the nut by :data:`PROTRUDE_MM`): the head in link j's counterbore (it turns on
-    the printed floor: the screw turns with the nut, held by its insert), the thrust washer
-    between the bosses, the nut at the bottom of link j+1's trap."""
-    near, trap = recess_mm(f.name.lower())
-    under = s0 + near  # under the head, on the counterbore's floor
-    nut0 = s3 - trap  # the nut's inner face on the trap's floor
+                  ) -> tuple[float, list[Piece]]:
+    """Stock screw length and the hardware pieces of a screw joint whose bosses span
+    ``[s0, s3]`` (module docstring): washer and head outside link j's face, the thrust
+    washer between the bosses, washer and lock nut outside link j+1's face; the tip passes
+    the nut by at least :data:`PROTRUDE_MM` (more where the next stock length is longer)."""
+    t = f.washer_t_mm
+    under, nut0 = s0 - t, s3 + t  # under the head; the nut's inner face
     need = nut0 + f.nut_h_mm + PROTRUDE_MM - under
     screw = f.screw_length(need)
     if screw is None:
@@ -270,14 +250,14 @@ def _screw_pieces(index: int, f: Fastener, s0: float, s3: float, m: float, gap: 
             f"joint {index}: the bosses need a {f.name} screw of {need:.0f} mm, longer than "
             f"stock ({max(f.lengths_mm):g} mm); a shorter joint offset d would do",
             "bad-parameters")
-    grow = screw - need  # the far boss grows so the nut moves out with the tip
-    s3, nut0 = s3 + grow, nut0 + grow
-    tip = under + screw
+    washer = f.washer_d_mm / 2
     pieces = [Piece(under - f.head_h_mm, under, f.head_d_mm / 2, "screw head"),
-              Piece(under, tip, f.d_mm / 2, "screw"),
-              Piece(m - gap / 2, m + gap / 2, f.washer_d_mm / 2, "thrust washer"),
+              Piece(under, s0, washer, "washer"),
+              Piece(under, under + screw, f.d_mm / 2, "screw"),
+              Piece(m - gap / 2, m + gap / 2, washer, "thrust washer"),
+              Piece(s3, nut0, washer, "washer"),
               Piece(nut0, nut0 + f.nut_h_mm, f.nut_corner_r_mm, "lock nut", sides=6)]
-    return screw, pieces, s3
+    return screw, pieces
 
 
 def envelope(j: Joint) -> tuple[float, float]:
@@ -303,7 +283,7 @@ def to_dict(j: Joint) -> dict:
             "screw_length_mm": j.screw_mm, "pin_length_mm": j.length, "split_mm": j.split,
             "gap_mm": j.gap, "boss_radius_mm": j.boss_radius,
             "bosses_mm": [list(j.lower), list(j.upper)], "bore_radius_mm": list(j.bore),
-            "recess_mm": list(j.recess), "engagement_mm": list(j.engagement),
+            "engagement_mm": list(j.engagement),
             "engagement_diameters": [e / j.axle_d for e in j.engagement],
             "notch_mm": list(j.notch), "origin_mm": j.origin.tolist(), "axis": j.w.tolist(),
             "pieces": [{"role": p.role, "s_mm": [p.s0, p.s1], "radius_mm": p.radius,

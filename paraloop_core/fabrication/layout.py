@@ -21,17 +21,19 @@ import numpy as np
 import trimesh
 
 from paraloop_core.errors import FabricationError
-from paraloop_core.fabrication import bed, profiles, sizing
-from paraloop_core.fabrication.joints import SEAT_MM, Joint
+from paraloop_core.fabrication import bed, flat, profiles, sizing
+from paraloop_core.fabrication.joints import Joint
 
 #: Steepest overhang (degrees from the vertical) printed without support.
 OVERHANG_DEG = 45.0
 #: Height (mm) above the bed within which a face counts as the first layers (no support).
 FIRST_LAYER_MM = 0.3
-#: Turns about the bar tried for its print flat (degrees), and how many of those whose cut
-#: keeps the walls are built (coarsely) to measure their support.
-TURNS_DEG = np.arange(0.0, 360.0, 10.0)
+#: How many of the print flats whose cut keeps the walls (:mod:`flat`) are built (coarsely) to
+#: measure their support.
 TRIALS = 4
+#: Print flats compete on support only among those at most this many times as high as the
+#: lowest (plus 1 mm).
+TALLER = 1.5
 #: Gap between parts on a plate and to the bed's edge (mm).
 GAP_MM = 5.0
 
@@ -54,75 +56,38 @@ def support(vertices: np.ndarray, faces: np.ndarray, down: np.ndarray) -> tuple[
     return float(area[steep & (low > FIRST_LAYER_MM)].sum()), float(area[nz < -1e-9].sum())
 
 
-def wall_slack(down: np.ndarray, flat: float, joints: list[tuple[Joint, bool]],
-               printer: profiles.Printer) -> float:
-    """Least room (mm) that cutting at ``n . x = flat`` (``down = n``) leaves: each bore keeps
-    the profile's wall over its boss, each recess (head seat, nut trap) its wall too (< 0:
-    the cut breaks in). ``joints``: the link's (joint, upper side) pairs. The distance to the
-    cut is linear along an axis, so each stretch's two ends decide."""
-    n = np.asarray(down, float)
-    wall = printer.wall_mm
-    slack = np.inf
-    for j, upper in joints:
-        s0, s1 = j.upper if upper else j.lower
-        recess = j.recess[1 if upper else 0]
-        floor = s1 - recess if upper else s0 + recess
-        bore = j.bore[1 if upper else 0]
-        stretches = [((s0, floor), bore), ((floor, s1), pocket_radius(j, upper))] if upper \
-            else [((s0, floor), pocket_radius(j, upper)), ((floor, s1), bore)]
-        for (a, b), radius in stretches:
-            if recess == 0 and radius != bore:
-                continue
-            dist = min(flat - float(n @ j.at(a)), flat - float(n @ j.at(b)))
-            slack = min(slack, dist - radius - wall)
-    return slack
-
-
-def pocket_radius(j: Joint, upper: bool) -> float:
-    """Radius (mm) of a screw joint's recess: the nut trap's corners or the head's seat (the
-    bore's for other joints)."""
-    if j.kind not in profiles.FASTENERS:
-        return j.bore[1 if upper else 0]
-    f = profiles.FASTENERS[j.kind]
-    return (f.nut_af_mm + SEAT_MM) / np.sqrt(3.0) if upper else f.head_d_mm / 2 + SEAT_MM
-
-
-def down_candidates(bar: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
-    """Unit directions ``(K, 3)`` perpendicular to the bar, one per :data:`TURNS_DEG`."""
-    p0, p1 = (np.asarray(p, float) for p in bar)
-    u = (p1 - p0) / np.linalg.norm(p1 - p0)
-    a = np.cross(u, [1.0, 0, 0] if abs(u[0]) < 0.9 else [0, 1.0, 0])
-    a /= np.linalg.norm(a)
-    b = np.cross(u, a)
-    t = np.radians(TURNS_DEG)
-    return np.cos(t)[:, None] * a + np.sin(t)[:, None] * b
-
-
 def choose_down(bar: tuple[np.ndarray, np.ndarray], radius: float,
                 joints: list[tuple[Joint, bool]], printer: profiles.Printer,
-                build) -> tuple[np.ndarray, float]:
-    """``(down, slack)``: the print flat of a link (module docstring). ``build(down)`` makes
-    the coarse part for a candidate (a manifold); among the candidates whose cut keeps every
-    wall (:func:`wall_slack` >= 0) the one with the least support area wins; if none keeps
-    them, the one with the most slack (the caller then does not cut)."""
-    downs = down_candidates(bar)
-    p0 = np.asarray(bar[0], float)
-    flats = downs @ p0 + radius * sizing.APOTHEM
-    slack = np.array([wall_slack(n, f, joints, printer) for n, f in zip(downs, flats,
-                                                                        strict=True)])
-    ok = np.flatnonzero(slack >= 0)
-    if not len(ok):
-        k = int(np.argmax(slack))
-        return downs[k], float(slack[k])
-    best, best_area = ok[0], np.inf
-    for k in ok[:: max(1, int(np.ceil(len(ok) / TRIALS)))]:
+                build, more: np.ndarray | None = None) -> tuple[np.ndarray, float]:
+    """``(down, slack)``: the print flat of a link (module docstring). ``build(down, cut)``
+    makes the coarse part for a candidate (a manifold), cut flat or not; among the candidates
+    whose cut keeps every wall (:func:`flat.wall_slack` >= 0), or else a few turns built
+    uncut, and the unit directions ``more`` ``(M, 3)`` (an end-effector's faces), the one
+    with the least support area wins (ties: the lower part); ``slack`` < 0: not to be cut."""
+    downs = flat.down_candidates(bar)
+    if more is not None:
+        downs = np.vstack([downs, np.asarray(more, float).reshape(-1, 3)])
+    slack = downs @ np.asarray(bar[0], float) + radius * sizing.APOTHEM - flat.depths(
+        downs, joints, printer.wall_mm)
+    turns = len(flat.TURNS_DEG)
+    if more is not None:
+        slack[turns:] = np.minimum(slack[turns:], -1.0)  # not perpendicular to the bar
+    ok = np.flatnonzero(slack[:turns] >= 0)
+    pool = ok if len(ok) else np.arange(turns)
+    trials = [*pool[:: max(1, int(np.ceil(len(pool) / TRIALS)))], *range(turns, len(downs))]
+    figures = {}  # trial: (support area, height)
+    for k in trials:
         try:
-            mesh = build(downs[k]).to_mesh()
+            mesh = build(downs[k], bool(slack[k] >= 0)).to_mesh()
         except FabricationError:  # a cut of this trial leaves it in pieces: not this one
             continue
-        area, _ = support(mesh.vert_properties[:, :3], mesh.tri_verts, downs[k])
-        if area < best_area - 1e-6:
-            best, best_area = k, area
+        v = mesh.vert_properties[:, :3]
+        figures[k] = (support(v, mesh.tri_verts, downs[k])[0], float(np.ptp(v @ downs[k])))
+    if not figures:
+        return downs[trials[0]], float(slack[trials[0]])
+    # a part standing tall is what comes off the bed mid-print: only the low ones compete
+    low = min(h for _, h in figures.values()) * TALLER + 1.0
+    best = min((k for k, (_, h) in figures.items() if h <= low), key=lambda k: figures[k])
     return downs[best], float(slack[best])
 
 

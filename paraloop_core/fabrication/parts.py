@@ -11,8 +11,8 @@ Link i is its bar and the bosses of its two joints (:mod:`joints`):
   ``reach + c + eps`` of joint j's axis on the neighbour's side of the split (and past the
   neighbour's boss, where its hardware sits) is cut away, so inside the zone each link is a
   solid of revolution about the shared axis and the two never meet at any joint angle;
-* the **bosses** (cylinders about the joint axis), then the bores, the head's counterbore and
-  the nut's hexagonal trap (or the rod's press fit);
+* the **bosses** (cylinders about the joint axis), then the bores (the rod's a press fit in
+  the grounded link) and room for the hardware outside the bosses' faces;
 * the **print flat**: everything past the bar's down face is cut off (bosses become flat on the
   bed); :mod:`layout` chooses ``down_i`` so that the bores keep their walls.
 
@@ -29,7 +29,7 @@ import numpy as np
 
 from paraloop_core.errors import FabricationError
 from paraloop_core.fabrication import profiles
-from paraloop_core.fabrication.joints import SEAT_MM, Joint
+from paraloop_core.fabrication.joints import SEAT_MM, Joint, outward
 from paraloop_core.fabrication.voxelspace import point_segment_distance
 
 #: Polygon segments of round solids (bosses, bores) and the zone margin they need.
@@ -114,17 +114,6 @@ def zone_cut(j: Joint, upper: bool, c: float, n: int = SEGMENTS) -> m3d.Manifold
     return _axis(j, j.split - j.gap / 2, hi + c + 1.0, r, n)
 
 
-def outward(bar: np.ndarray, away: np.ndarray, r: float, within: float) -> float:
-    """How far (mm) along ``away`` (the joint axis, outwards) a bar of radius ``r`` leaving
-    the joint point along ``bar`` has material ``within`` mm of the axis."""
-    n = float(np.linalg.norm(bar))
-    a = float(bar @ away) / n if n > 0 else 0.0
-    q = np.sqrt(max(1.0 - a * a, 0.0))
-    if a <= 0.0:
-        return r * q
-    return a * min(n, (within + r) / max(q, 1e-12)) + r * q
-
-
 def outer_cut(j: Joint, upper: bool, c: float, far: float, n: int = SEGMENTS) -> m3d.Manifold:
     """What a link's body loses past its boss's outer face at joint ``j``: within the boss
     radius plus ``c`` of the axis, ``far`` mm on (a bar's end standing out past the face)."""
@@ -135,19 +124,16 @@ def outer_cut(j: Joint, upper: bool, c: float, far: float, n: int = SEGMENTS) ->
 
 
 def holes(j: Joint, upper: bool, far: float, n: int = SEGMENTS) -> m3d.Manifold:
-    """Bore, recess and, for the grounding rod, the way out, of one side of joint ``j``;
-    ``far`` (mm) how far past the joint the pockets must run to leave any bar end."""
+    """Bore and, for the grounding rod, the way out, of one side of joint ``j``, with room for
+    the hardware outside the bosses' faces; ``far`` (mm) how far past the joint that room
+    must run to leave any bar end."""
     lo, hi = j.extent
     bore = j.bore[1 if upper else 0]
     cuts = [_axis(j, lo - far, hi + far, bore, n)]
-    if j.kind in profiles.FASTENERS:
-        f = profiles.FASTENERS[j.kind]
-        if upper:  # the nut's trap, a hexagonal prism, then out through anything beyond
-            r = (f.nut_af_mm + SEAT_MM) / np.sqrt(3.0)
-            cuts.append(_axis(j, j.upper[1] - j.recess[1], hi + far, r, 6))
-        else:  # the head's counterbore
-            r = f.head_d_mm / 2 + SEAT_MM
-            cuts.append(_axis(j, lo - far, j.lower[0] + j.recess[0], r, n))
+    if j.kind in profiles.FASTENERS:  # washer, head or nut on the outer face, and beyond
+        r = profiles.FASTENERS[j.kind].reach_r_mm + SEAT_MM
+        cuts.append(_axis(j, j.upper[1], hi + far, r, n) if upper else
+                    _axis(j, lo - far, j.lower[0], r, n))
     if j.kind in ("rod", "printed-pin"):  # the cap or head sits outside the boss: room for
         for p in j.pieces:                  # it, from the boss's face on outwards
             if p.printed and p.role != "pin":

@@ -33,6 +33,7 @@ from paraloop_core.fabrication import (
     bed,
     check,
     drive_mass,
+    flat,
     joints,
     layout,
     parts,
@@ -240,7 +241,9 @@ def _ground(asm: Assembly, opts: Options) -> tuple[Assembly, base.Base | None, l
             warnings.append(f"the grounding rod keeps {ranked[0].clearance_mm:.1f} mm from "
                             "the moving links: more than the least gap, less than three times "
                             "their predicted deflection")
-    fallback = None
+    # best first: both links flat with the rod's cap, the cap on support, flat without the
+    # cap (the closed loop holds the joint), neither
+    found: dict[tuple[bool, bool], tuple] = {}
     for b in ranked[:GROUND_TRIES]:
         for rod, cap in ((rod, cap) for rod in _rods(asm, b, opts) for cap in (True, False)):
             try:
@@ -249,39 +252,56 @@ def _ground(asm: Assembly, opts: Options) -> tuple[Assembly, base.Base | None, l
                 if exc.reason not in ("falls-apart", "bad-parameters"):
                     raise
                 continue
-            g = grounded[0]
-            if all(g.slack[i] >= 0 for i in (b.joint, (b.joint + 1) % 6)):
+            flat_ok = all(grounded[0].slack[i] >= 0 for i in (b.joint, (b.joint + 1) % 6))
+            if flat_ok and cap:
                 return (*grounded, warnings)
-            fallback = fallback or grounded
-    if fallback is not None:
-        return (*fallback, warnings + ["the two links on the grounding rod cannot lie flat on "
-                                       "the bed without breaking into the rod's bore: they "
-                                       "print with supports"])
+            found.setdefault((cap, flat_ok), grounded)
+    for cap, flat_ok in ((True, False), (False, True), (False, False)):
+        if (cap, flat_ok) in found:
+            return (*found[cap, flat_ok], warnings + (
+                [] if flat_ok else ["the two links on the grounding rod cannot lie flat on "
+                                    "the bed without breaking into the rod's bore: they "
+                                    "print with supports"]))
     return asm, None, warnings + ["no grounding rod clears the moving links over the whole "
                                   "cycle: exported without a base (hold it by a link, or hang "
                                   "it)"]
 
 
 def _rods(asm: Assembly, b: base.Base, opts: Options) -> list[Rod]:
-    """The maker's rod, then thinner stock rods whose bore leaves the bar's flat its wall in
-    both links of the grounded joint (thin bars lie flat on a thinner rod)."""
-    r = min(asm.plan.radii[b.joint], asm.plan.radii[(b.joint + 1) % 6])
-    room = r * sizing.APOTHEM - opts.printer.wall_mm
-    thinner = [rod for rod in profiles.RODS.values() if rod.d_mm < opts.rod.d_mm and
-               joints.bore_radius("rod", opts.printer, rod) <= room]
-    return [opts.rod] + sorted(thinner, key=lambda rod: -rod.d_mm)[:1]
+    """Stock rods up to the maker's, thickest first, whose bore leaves both links of the
+    grounded joint a print flat (:mod:`flat`, at most two); the maker's rod when none does
+    (those links then print with supports)."""
+    stock = sorted((rod for rod in profiles.RODS.values() if rod.d_mm <= opts.rod.d_mm),
+                   key=lambda rod: (rod != opts.rod, -rod.d_mm))
+    side = 0 if b.link == b.joint else 1
+    fits = []
+    for rod in stock:
+        j = _rod_joint(asm, b.joint, opts, rod, side, True)
+        if all(asm.plan.radii[i] * sizing.APOTHEM >= flat.least_depth(
+                (asm.bars[i][0][0], asm.bars[i][-1][1]),
+                [(j if i == b.joint else asm.joints[i], False),
+                 (j if (i - 1) % 6 == b.joint else asm.joints[(i - 1) % 6], True)],
+                opts.printer.wall_mm) for i in (b.joint, (b.joint + 1) % 6)):
+            fits.append(rod)
+    return fits[:2] or [opts.rod]
+
+
+def _rod_joint(asm: Assembly, joint: int, opts: Options, rod: Rod, side: int, cap: bool
+               ) -> joints.Joint:
+    """Joint ``joint`` of ``asm`` laid out anew as the grounded joint on ``rod``."""
+    old = asm.joints[joint]
+    r = asm.plan.radii
+    return joints.layout(joint, old.origin, old.at(old.length), old.w,
+                         assembly.bar_vectors(asm, joint), (r[joint], r[(joint + 1) % 6]),
+                         old.boss_radius, "rod", opts.printer, eps=parts.EPS_MM, rod=rod,
+                         rod_side=side, cap=cap)
 
 
 def _on_rod(asm: Assembly, b: base.Base, opts: Options, cap: bool = True
             ) -> tuple[Assembly, base.Base]:
     """``asm`` with joint ``b.joint`` laid out for the rod, the plate and the rod added."""
     side = 0 if b.link == b.joint else 1
-    old = asm.joints[b.joint]
-    r = asm.plan.radii
-    new = joints.layout(b.joint, old.origin, old.at(old.length), old.w,
-                        assembly.bar_vectors(asm, b.joint), (r[b.joint], r[(b.joint + 1) % 6]),
-                        old.boss_radius, "rod", opts.printer, eps=parts.EPS_MM, rod=b.rod,
-                        rod_side=side, cap=cap)
+    new = _rod_joint(asm, b.joint, opts, b.rod, side, cap)
     asm = assembly.relay(asm, b.joint, new)
     rod_piece = next(p for p in new.pieces if p.role == "rod")
     cap_end = new.at(rod_piece.s1 if side == 0 else rod_piece.s0)  # the rod's upper end

@@ -30,7 +30,7 @@ import numpy as np
 from scipy.optimize import linprog
 
 from paraloop_core.errors import FabricationError
-from paraloop_core.fabrication import bed, joints, stiffness
+from paraloop_core.fabrication import bed, flat, joints, stiffness
 from paraloop_core.fabrication.profiles import Material, Printer, Rod
 from paraloop_core.linkage import loops
 
@@ -43,6 +43,15 @@ BOSS_PER_BAR = 1.25
 #: Thickest bar (corner radius, mm) as a fraction of the size, within [lo, hi] mm: thicker
 #: only adds mass (and motor torque) to a desk model.
 BAR_CAP = (0.028, 4.5, 8.0)
+#: Thickest bar (corner radius, mm) grown past :data:`BAR_CAP` where its print flat would
+#: otherwise cut into a bore (:func:`flat_radii`).
+FLAT_CAP_MM = 12.0
+#: Room (mm) the grown bars' flats keep beyond the bores' walls: the built parts' layouts
+#: differ a little from the programme's (boss lengths follow the radii), and a flat at its
+#: limit would leave the cut to the last tessellation.
+FLAT_ROOM_MM = 0.4
+#: Rounds of growing bars for their print flats (the layouts follow the radii).
+FLAT_ROUNDS = 4
 #: Gaps the programme keeps, per required gap, when it can (the verification then proves the
 #: required gap with room to spare, not at its limit).
 GAP_MARGIN = 1.1
@@ -136,15 +145,14 @@ def bar_cap(size_mm: float) -> float:
 def min_radii(b: Bounds, k: float, printer: Printer, kind: str, level: int) -> np.ndarray:
     """Thinnest bar corner radius ``(6,)`` (mm) at ``k`` mm per unit at a :data:`LEVELS`
     level: the width and length per width (the aims, the floors, or none at the last level)
-    and a wall between the bore or a recess and the bar's flat underside (the part is printed on
-    that flat: its bosses are cut to it)."""
-    bore = joints.bore_radius(kind, printer)
-    if level >= 3:  # the bore's wall only: a recess may then stop the print flat's cut
-        return np.full(6, (bore + printer.wall_mm) / APOTHEM)
-    flat = (max(bore, joints.pocket_radius(kind, printer)) + printer.wall_mm) / APOTHEM
+    and a wall between the bore and the bar's flat underside (the part is printed on that
+    flat: its bosses are cut to it; :func:`flat_radii` adds the tilt of the axes)."""
+    flat_r = (joints.bore_radius(kind, printer) + printer.wall_mm) / APOTHEM
+    if level >= 3:
+        return np.full(6, flat_r)
     width, lw = (WIDTH_AIM_MM, LW_AIM) if level == 0 else (WIDTH_MM, LW_MAX)
     return np.maximum.reduce([np.full(6, width / FLATS), b.bar_lengths * k / (lw * FLATS),
-                              np.full(6, flat)])
+                              np.full(6, flat_r)])
 
 
 def min_boss(printer: Printer, kind: str, rod: Rod) -> float:
@@ -262,7 +270,7 @@ def at_scale(real, b: Bounds, k: float, printer: Printer, material: Material, ki
     if level >= 2:
         top = np.full(6, rcap)
         plan = _settle(real, b, k, printer, material, kind, eps, floor, top, bmin,
-                       np.full((6, 6), stiffness.MIN_GAP_MM), matrix, rest)
+                       np.full((6, 6), stiffness.MIN_GAP_MM), matrix, rest, level < 3)
         return None if plan is None else replace(plan, level=level)
     for delta in DEFLECTION_STEPS:
         # the torque of bars up to THICKER x the radius they need, which needs the torque:
@@ -279,13 +287,65 @@ def at_scale(real, b: Bounds, k: float, printer: Printer, material: Material, ki
             continue
         gaps = stiffness.required_gaps(np.full(6, delta)) * margin
         plan = _settle(real, b, k, printer, material, kind, eps, rmin, top, bmin, gaps, matrix,
-                       rest)
+                       rest, True)
         if plan is not None:
             return replace(plan, level=level)
     return None
 
 
 def _settle(real, b: Bounds, k: float, printer: Printer, material: Material, kind: str,
+            eps: float, rmin: np.ndarray, rcap: np.ndarray, bmin: float, gaps: np.ndarray,
+            matrix: np.ndarray, rest: int | None, lay_flat: bool) -> Plan | None:
+    """:func:`_radii_settle`; with ``lay_flat``, bars whose print flat would cut into a bore
+    (:func:`flat_radii`) are then made that much thicker (up to :data:`FLAT_CAP_MM`) where
+    the programme still holds and the heavier parts bend no more than ``gaps`` allows: all
+    such bars at once, else one at a time; the others stay thinner (printed uncut, on
+    support)."""
+    plan = _radii_settle(real, b, k, printer, material, kind, eps, rmin, rcap, bmin, gaps,
+                         matrix, rest)
+
+    def notches(p: Plan) -> np.ndarray:
+        return np.array([j.notch for j in p.layouts])
+
+    def thicker(grow: np.ndarray, need: np.ndarray) -> tuple[Plan | None, np.ndarray]:
+        # kept only if no bar bends more than the gaps allow and no bar leaning over a pin
+        # is notched deeper by the grown bosses (a notch can cut a thin bar through)
+        lo = np.where(grow, np.maximum(rmin, need), rmin)
+        p = _radii_settle(real, b, k, printer, material, kind, eps, lo, np.maximum(rcap, lo),
+                          bmin, gaps, matrix, rest)
+        ok = p is not None and np.all(p.gaps <= gaps + 1e-9) and np.all(
+            notches(p) <= notches(plan) + 1e-9)
+        return (p, lo) if ok else (None, lo)
+
+    for _ in range(FLAT_ROUNDS if lay_flat else 0):
+        if plan is None:
+            break
+        need = flat_radii(b, k, plan.layouts, printer.wall_mm + FLAT_ROOM_MM)
+        short = (flat_radii(b, k, plan.layouts, printer.wall_mm) > plan.radii) & (
+            need <= max(float(np.max(rcap)), FLAT_CAP_MM))
+        tries = [short] + ([np.arange(6) == i for i in np.argsort(plan.radii - need)
+                            if short[i]] if short.sum() > 1 else [])
+        for grow in tries if np.any(short) else []:
+            better, lo = thicker(grow, need)
+            if better is not None:
+                plan, rmin = better, lo
+                break
+        else:
+            break
+    return plan
+
+
+def flat_radii(b: Bounds, k: float, layouts: tuple[joints.Joint, ...], wall: float
+               ) -> np.ndarray:
+    """Least bar corner radius ``(6,)`` (mm) at ``k`` mm per unit at which each link's print
+    flat (:mod:`flat`, best turn) keeps every wall of its joints' ``layouts``."""
+    pts = b.points * k
+    return np.array([flat.least_depth((pts[2 * i], pts[2 * i + 1]),
+                                      [(layouts[i], False), (layouts[(i - 1) % 6], True)],
+                                      wall) for i in range(6)]) / APOTHEM
+
+
+def _radii_settle(real, b: Bounds, k: float, printer: Printer, material: Material, kind: str,
             eps: float, rmin: np.ndarray, rcap: np.ndarray, bmin: float, gaps: np.ndarray,
             matrix: np.ndarray, rest: int | None) -> Plan | None:
     """Radii for fixed ``gaps``, repeated until the joint layouts they imply (how far the

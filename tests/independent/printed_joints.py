@@ -4,9 +4,9 @@ For joint j (``report.json`` ``joints[j]``: origin, axis from E_j towards S_{j+1
 kind, axle diameter, hardware ``pieces`` with axial ranges) the two links' profiles around the
 axis (:mod:`joint_profile`) give: the bore actually present, the length over which the axle is
 held (material at every angle, bore <= axle + 0.5 mm), the walls around it, pieces that would
-not fit, and for screw joints the retention (lock nut in the bill of materials, a hexagonal
-trap that takes the nut and stops it turning, head and nut bearing on material, the stock
-screw reaching past the nut); rod joints need their printed cap.
+not fit, and for screw joints the retention (a lock nut, in a hexagonal trap that takes it
+and stops it turning or outside its boss on a washer, head and nut bearing on material, the
+stock screw reaching past the nut); rod joints need their printed cap.
 """
 
 from __future__ import annotations
@@ -107,7 +107,8 @@ def check_joint(ex, j: int, wall_mm: float) -> tuple[dict, list[str], list[str]]
 
 
 def _screw_retention(ex, jt: dict, prof: list, out: dict) -> list[str]:
-    """A screw and lock nut: the nut's trap, the head's and nut's bearing faces, the reach."""
+    """A screw and lock nut: the nut's trap (or its washer outside the boss), the head's and
+    nut's bearing faces, the reach."""
     j, fails = jt["joint"], []
     head, nut = _pieces(jt, "screw head")[0], _pieces(jt, "lock nut")[0]
     h0, h1 = head["s_mm"]
@@ -117,11 +118,30 @@ def _screw_retention(ex, jt: dict, prof: list, out: dict) -> list[str]:
     k_nut = int(np.argmin([abs(m - (n0 + n1) / 2) for m in mids]))
     k_head = 1 - k_nut
     a_nut = 2 * _free_radius(nut)
-    clear, blocked = jp.hex_fit(prof[k_nut], n0, n1, a_nut)
-    head_face = jp.bearing_face(prof[k_head], float(head["radius_mm"]) - jp.FIT_TOL_MM,
-                                h1 if toward > 0 else h0, toward)
-    nut_face = jp.bearing_face(prof[k_nut], a_nut / 2 - jp.FIT_TOL_MM,
-                               n0 if toward > 0 else n1, -toward)
+    lo, hi = jt["bosses_mm"][k_nut]
+    trapped = lo < (n0 + n1) / 2 < hi  # sunk in its boss, else outside on a washer
+    clear, blocked = jp.hex_fit(prof[k_nut], n0, n1, a_nut) if trapped else (None, None)
+
+    def washer(a: float, b: float) -> dict | None:
+        """The washer (not the thrust washer) filling the axial gap [a, b] (a face station
+        lies up to a step inside the material), if any."""
+        tol = jp.STEP_MM + 0.05
+        return next((w for w in _pieces(jt, "washer") if "thrust" not in w["role"] and
+                     min(w["s_mm"]) <= min(a, b) + tol and max(w["s_mm"]) >= max(a, b) - tol),
+                    None)
+
+    def face(k: int, piece_r: float, start: float, direction: int) -> float | None:
+        """The face a head or nut bears on (through its washer: the washer's radius)."""
+        f = jp.bearing_face(prof[k], piece_r - jp.FIT_TOL_MM, start, direction)
+        if f is None or trapped and k == k_nut:
+            return f
+        w = washer(start, f)
+        if abs(f - start) > 2 * jp.STEP_MM and w is None:
+            return None  # a gap with nothing in it: the head or nut does not bear on the link
+        return f
+
+    head_face = face(k_head, float(head["radius_mm"]), h1 if toward > 0 else h0, toward)
+    nut_face = face(k_nut, a_nut / 2, n0 if toward > 0 else n1, -toward)
     screw_len = float(jt["screw_length_mm"])
     pitch = PITCH_SHARE * out["axle_diameter_mm"]
     height = n1 - n0
@@ -137,10 +157,10 @@ def _screw_retention(ex, jt: dict, prof: list, out: dict) -> list[str]:
     nut_link = out["links"][k_nut]["link"]
     if nut_link != (j + 1) % 6:
         fails.append(f"joint {j}: the nut sits in link {nut_link}, not link {(j + 1) % 6}")
-    if not clear >= RESOLUTION_MM - jp.FIT_TOL_MM:
+    if trapped and not clear >= RESOLUTION_MM - jp.FIT_TOL_MM:
         fails.append(f"joint {j}: the {a_nut:.2f} mm nut does not fit its trap "
                      f"(short by {-clear:.2f} mm)")
-    if not blocked >= 0.5:
+    if trapped and not blocked >= 0.5:
         fails.append(f"joint {j}: the trap stops the nut turning over only {blocked:.0%} "
                      "of its height (not hexagonal)")
     if head_face is None:
