@@ -6,6 +6,9 @@ without flags; per design it prints the size, the thinnest bar and its length / 
 predicted sag and torque deflection, the least pin engagement (in axle diameters), the base
 (stands, centre-of-mass margin as a share of the plate), the largest support share, the
 verification and the export time; then the shares meeting the issue's criteria.
+``--check DIR`` also writes each export into ``DIR/<design>/`` and measures its files with
+the independent checker (``tests/independent/printed_check.py``: sections, joint profiles,
+centre of mass over the cycle, print layout, clearance), printing its failures.
 """
 
 from __future__ import annotations
@@ -13,6 +16,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from functools import partial
 from multiprocessing import Pool
 from pathlib import Path
 
@@ -23,13 +27,15 @@ sys.path.insert(0, str(ROOT / "tests"))
 sys.path.insert(0, str(ROOT))
 
 from independent.generic_designs import random_design  # noqa: E402
+from independent.printed_check import check_export  # noqa: E402
 
 import paraloop_core as pl  # noqa: E402
 from paraloop_core import printed  # noqa: E402
 
 
-def run_one(item: tuple[str, object]) -> dict:
-    """Solve and export one design (path or random seed): a summary row."""
+def run_one(item: tuple[str, object], check: Path | None = None) -> dict:
+    """Solve and export one design (path or random seed): a summary row; with ``check`` the
+    files written to ``check/<design>`` and the independent checker's failures."""
     name, source = item
     t0 = time.perf_counter()
     row: dict = {"design": name}
@@ -39,7 +45,7 @@ def run_one(item: tuple[str, object]) -> dict:
         sol = pl.solve(design)
         if sol.realization is None:
             return {**row, "outcome": "not realized", "time": time.perf_counter() - t0}
-        _, rep, _ = printed.export(sol)
+        files, rep, _ = printed.export(sol)
     except ValueError as exc:  # the CLI's refusals (FabricationError etc.)
         return {**row, "outcome": f"refused: {' '.join(str(exc).split()[:16])}",
                 "time": time.perf_counter() - t0}
@@ -56,7 +62,18 @@ def run_one(item: tuple[str, object]) -> dict:
             "support": max(p["support_share"] for p in rep["print_layout"]["parts"]),
             "min_gap_mm": v["min_non_adjacent_gap_mm"], "plates": rep["print_layout"]["plates"],
             "walls_ok": rep["walls"]["ok"], "loop_changed": rep["choice"]["loop"] !=
-            rep["choice"]["design_loop"], "time": time.perf_counter() - t0}
+            rep["choice"]["design_loop"], "time": time.perf_counter() - t0,
+            "failures": None if check is None else _checked(files, check / name)}
+
+
+def _checked(files: list[tuple[str, bytes]], folder: Path) -> list[str]:
+    """The independent checker's failures of the export ``files`` written to ``folder``."""
+    folder.mkdir(parents=True, exist_ok=True)
+    for old in folder.iterdir():
+        old.unlink()
+    for fname, data in files:
+        (folder / fname).write_bytes(data)
+    return check_export(folder)["failures"]
 
 
 def describe(r: dict) -> str:
@@ -67,7 +84,9 @@ def describe(r: dict) -> str:
             f"sag {r['sag_mm']:.2f} / torque {r['torque_mm']:.2f} mm, engage "
             f"{r['engage']:.1f} d, base {base}{margin}, support {100 * r['support']:.0f} %, "
             f"gap {r['min_gap_mm']:.1f} mm, {r['plates']} plates"
-            + ("" if meets(r) else "  << short of the criteria"))
+            + ("" if meets(r) else "  << short of the criteria")
+            + ("" if r["failures"] is None else
+               "".join(f"\n      checker: {f}" for f in r["failures"]) or "\n      checker: ok"))
 
 
 def meets(r: dict) -> bool:
@@ -84,13 +103,16 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--start", type=int, default=0, help="first random seed")
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--no-examples", action="store_true")
+    ap.add_argument("--check", type=Path, default=None, metavar="DIR",
+                    help="write the exports here and run the independent checker on them")
     args = ap.parse_args(argv)
     items = [] if args.no_examples else [
         (p.stem, p) for p in sorted((ROOT / "assets" / "designs").glob("*.json"))]
     items += [(f"random-{s}", s) for s in range(args.start, args.start + args.n)]
     pool = Pool(args.workers) if args.workers > 1 else None
     rows = []
-    for r in (pool.imap(run_one, items) if pool else map(run_one, items)):
+    one = partial(run_one, check=args.check)
+    for r in (pool.imap(one, items) if pool else map(one, items)):
         rows.append(r)
         extra = "" if "size_mm" not in r else describe(r)
         print(f"{r['design']:>14}: {r['outcome']}{extra} ({r['time']:.1f} s)", flush=True)
@@ -105,6 +127,15 @@ def main(argv: list[str] | None = None) -> None:
           f"{sum(bool(r['stands']) for r in done)}; export time median "
           f"{np.median([r['time'] for r in real]):.1f} s, max "
           f"{max(r['time'] for r in real):.1f} s")
+    if args.check is not None:
+        clean = sum(r["failures"] == [] for r in done)
+        kinds: dict[str, int] = {}
+        for r in done:
+            for f in set(f.split(":")[0].split(" ")[0] for f in r["failures"]):
+                kinds[f] = kinds.get(f, 0) + 1
+        print(f"independent checker: {clean} of {len(done)} exports without a failure "
+              f"({100 * clean / max(len(real), 1):.0f} % of the realized); designs failing by "
+              f"kind: {kinds}")
 
 if __name__ == "__main__":
     main()
