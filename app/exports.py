@@ -163,7 +163,7 @@ def export_zip(solution: pipeline.Solution, fab: FabSettings,
         result = printable.export_printable(
             real, printer=printer_of(fab),
             size_mm=spec.size_mm if fab.carved_parts else (fab.size_mm or None),
-            print_in_place=fab.print_in_place, ground=fab.ground,
+            print_in_place=fab.print_in_place, ground=fab.ground, ground_link=fab.ground_link,
             effector=solution.end_effector, fixed=dict(solution.design.realization.fixed),
             alternatives=solution.other_loops(), drive=solution.design.drive,
             progress=progress, **opts)
