@@ -349,3 +349,30 @@ def label_boxes(page, report, labels: dict[str, dict]) -> np.ndarray:
                        bb["y"] + bb["height"] / 2 + f * pc[:, 1] / pc[:, 2]], axis=-1)
     half = 0.5 * box_sizes([v["props"]["text"] for v in labels.values()])
     return np.concatenate([centre - half, centre + half], axis=-1)
+
+
+def drag_gizmo(page, client, gizmo, pixels: float, steps: int = 10) -> None:
+    """A real mouse drag of ``gizmo``'s arrow that looks longest on screen, ``pixels`` along
+    it, seen by ``client``'s camera; the mouse is still down when this returns (call
+    ``page.mouse.up()`` to release)."""
+    cam = client.camera
+    rot, c = tf.SO3(cam.wxyz).as_matrix(), cam.position.copy()
+    bb = page.locator("canvas").first.bounding_box()
+    f = (bb["height"] / 2) / np.tan(cam.fov / 2)
+
+    def proj(pw):
+        pc = rot.T @ (np.asarray(pw, float) - c)
+        return np.array([bb["x"] + bb["width"] / 2 + f * pc[0] / pc[2],
+                         bb["y"] + bb["height"] / 2 + f * pc[1] / pc[2]])
+
+    centre, axes, s = gizmo.position.copy(), tf.SO3(gizmo.wxyz).as_matrix(), gizmo.scale
+    a = int(np.argmax([np.linalg.norm(proj(centre + s * axes[:, k]) - proj(centre))
+                       for k in range(3)]))
+    d = proj(centre + s * axes[:, a]) - proj(centre)
+    d /= np.linalg.norm(d)
+    start = proj(centre + 0.9 * s * axes[:, a])
+    page.mouse.move(*start)
+    page.mouse.down()
+    for k in range(1, steps + 1):
+        page.mouse.move(*(start + pixels * d * k / steps))
+        time.sleep(0.03)

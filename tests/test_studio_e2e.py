@@ -27,6 +27,7 @@ import viser
 from PIL import Image
 
 from app import studio as studio_mod
+from app.labels import overlaps
 from paraloop_core import design as design_mod
 from tests import browser_support
 from tests.browser_support import (
@@ -40,6 +41,7 @@ from tests.browser_support import (
     extent,
     free_port,
     inside_fraction,
+    label_boxes,
     new_page,
     number_box,
     open_studio,
@@ -53,6 +55,7 @@ from tests.browser_support import (
     wait_for,
     wait_framed,
 )
+from tests.test_studio_plain import sentence_problems
 
 pytestmark = pytest.mark.browser
 browser = browser_support.browser  # the fixtures
@@ -61,12 +64,28 @@ readonly_assets = browser_support.readonly_assets
 RESTORE = re.compile(r"^Restore changes from \d{1,2}:\d{2}")
 
 
+def labels_apart(page, log, since: float, n: int) -> bool:
+    """Whether the page's ``n`` pose labels, seen by its last camera reported after
+    ``since``, have boxes that do not overlap (waits a little for the placed labels)."""
+    def apart() -> bool:
+        labels, report = page.scene.labels(), log.since(since)
+        if len(labels) != n or report is None or any("position" not in v
+                                                     for v in labels.values()):
+            return False
+        b = label_boxes(page, report, labels)
+        return not (overlaps(b, b) & ~np.eye(n, dtype=bool)).any()
+
+    return wait_for(apart, 10, 0.2)
+
+
 # --- 1. framing of the bundled examples ---------------------------------------------------------
 @pytest.mark.parametrize("example", EXAMPLES)
 def test_open_and_frame_all_show_the_whole_design(example, readonly_assets, browser):
     """Each example opened from a read-only folder loads without errors and is framed left of
     the GUI panel on open and again by "Frame all" after the camera was moved away; the
-    folder stays untouched."""
+    folder stays untouched. The page shows one plain status sentence, the linkage without
+    the construction aids, and pose labels that do not overlap in its own camera (on open
+    and after "Frame all")."""
     before = tree_state(readonly_assets)
     server, studio = open_studio(readonly_assets / "designs" / example)
     page = None
@@ -75,10 +94,18 @@ def test_open_and_frame_all_show_the_whole_design(example, readonly_assets, brow
         page, client, log = connect(server, browser)
         assert studio.worker.wait_idle(60)
         assert not errors(studio), studio.notifications
-        assert "⚠" not in studio.panels.status.content, studio.panels.status.content
+        assert studio.status.sizes.wait_idle(30)
+        sentence = studio.panels.status.content.strip("*")
+        assert not sentence_problems(sentence), sentence
+        page.get_by_text(sentence).first.wait_for(timeout=15_000)  # as the page shows it
+        shown = {k: v["visible"] for k, v in page.scene.nodes.items()}
+        assert shown["/loop/bars"] and shown["/loop/joints"], shown
+        assert not any(shown[k] for k in ("/factorizations", "/loop/axes", "/motion/frames",
+                                          "/motion/current/ellipsoid")), shown
         pts = extent(studio)
         frac = wait_framed(page, log, pts, 0.0)
         assert frac >= 0.95, f"on open only {frac:.0%} of the extent is left of the panel"
+        assert labels_apart(page, log, 0.0, len(studio.state.design.poses))
 
         center, size = pts.mean(0), max(np.ptp(pts, axis=0).max(), 1e-3)
         away = np.array([1.0, 1.0, 1.0]) / np.sqrt(3.0)
@@ -92,6 +119,7 @@ def test_open_and_frame_all_show_the_whole_design(example, readonly_assets, brow
         click(page, "Frame all", "missing feature: top-level 'Frame all' button")
         frac = wait_framed(page, log, pts, t)
         assert frac >= 0.95, f"after 'Frame all' only {frac:.0%} is left of the panel"
+        assert labels_apart(page, log, t, len(studio.state.design.poses))
         assert not errors(studio), studio.notifications
         assert not page.js_errors, page.js_errors
     finally:
@@ -130,7 +158,7 @@ def test_four_browsers_share_one_studio(browser, tmp_path):
             assert wait_for(lambda pg=pg, k=k: rendered_pixels(pg, tmp_path, f"p{k}") > 1000,
                             20, 0.5), f"page {k} shows no scene"
         assert studio.state.design.loop != 4
-        pages[0].get_by_role("combobox", name="Loop").click()
+        pages[0].get_by_role("combobox", name="Loop variant").click()
         option = pages[0].get_by_role("option", name=re.compile(r"^loop 4\b"))
         try:
             option.wait_for(state="visible", timeout=10_000)
@@ -140,7 +168,7 @@ def test_four_browsers_share_one_studio(browser, tmp_path):
         assert wait_for(lambda: studio.state.design.loop == 4, 15)
         assert studio.worker.wait_idle(60)
         for pg in pages[1:]:
-            playwright_sync.expect(pg.get_by_role("combobox", name="Loop")).to_have_value(
+            playwright_sync.expect(pg.get_by_role("combobox", name="Loop variant")).to_have_value(
                 re.compile(r"^loop 4\b"), timeout=15_000)
         assert len(server.get_clients()) == 4
         for k, pg in enumerate(pages):
