@@ -298,6 +298,18 @@ class StudioState:
                 lambda: self.autosave_path is not None and self.saved_version != self.version,
                 timeout)
 
+    def keep_saved(self, stop: threading.Event, failed: Callable[[OSError], None],
+                   gap: float) -> None:
+        """The autosave loop (a thread of its own, until ``stop``): each change is written at
+        once, further ones at most every ``gap`` seconds; ``failed`` hears of write errors."""
+        while not stop.is_set():
+            if self.wait_unsaved(0.5) and not stop.is_set():
+                try:
+                    self.autosave()
+                except OSError as exc:
+                    failed(exc)
+                stop.wait(gap)
+
     def autosave(self) -> bool:
         """Write the current design (an unfinished drag included) to the autosave file if it
         changed since the last write."""

@@ -87,8 +87,9 @@ class Studio(FileTransfers):
         self._stop = threading.Event()
         self._player = threading.Thread(target=self._play, name="studio-player", daemon=True)
         self._player.start()
-        self._saver = threading.Thread(target=self._autosaver, name="studio-autosave",
-                                       daemon=True)
+        self._saver = threading.Thread(  # the autosave: neither worker nor search delays it
+            target=self.state.keep_saved, name="studio-autosave", daemon=True,
+            args=(self._stop, self._autosave_failed, AUTOSAVE_SECONDS))
         self._saver.start()
         self.request(FULL, sync=True)
 
@@ -202,13 +203,8 @@ class Studio(FileTransfers):
         else:
             self._frame_pending = frame
 
-    def autosave(self) -> None:
-        """Write the design (unsaved drags included) to the autosave file if it changed."""
-        try:
-            self.state.autosave()
-        except OSError as exc:
-            self.notify("Autosave failed", f"{exc}; use Save design", error=True,
-                        cause="autosave")
+    def _autosave_failed(self, exc: OSError) -> None:
+        self.notify("Autosave failed", f"{exc}; use Save design", error=True, cause="autosave")
 
     def _solve(self, design: Design, level: int) -> tuple[pipeline.Solution, str]:
         """:meth:`Solver.solve`. A fit design's full update takes the fit of its last drag
@@ -252,8 +248,11 @@ class Studio(FileTransfers):
         return sol, note
 
     def _frame_while_busy(self) -> None:
-        """During a long job on the worker (fit, full search): redraw the frame, at most 30
-        times a second, when the slider, Play or the layers moved it."""
+        """During a long job on the worker (fit, full search): *Frame all* at once, and redraw
+        the frame, at most 30 times a second, when the slider, Play or the layers moved it."""
+        if self._frame_pending == "keep":
+            self._frame_pending = None
+            self.frame_all(keep_direction=True)
         now = time.monotonic()
         if now - self._busy_frame[0] < 1.0 / 30.0:
             return
@@ -273,12 +272,10 @@ class Studio(FileTransfers):
         except Cancelled as exc:
             if exc.by_user:  # keep the last valid solution
                 self._drawn = (version, level)
-                what = "fit" if design.motion.method == "fit" else "search"
-                self.status.set(f"{what.capitalize()} cancelled - the last result is shown; "
-                                "edit the design to start again",
-                                f"The {what} was cancelled with Cancel job.")
-                self.notify(f"{what.capitalize()} cancelled", "stopped as you asked",
-                            cause="job")
+                what = "Fit" if design.motion.method == "fit" else "Search"
+                self.status.set(f"{what} cancelled - the last result is shown; edit the "
+                                "design to start again", f"{what} cancelled with Cancel job.")
+                self.notify(f"{what} cancelled", "stopped as you asked", cause="job")
             return  # else a newer edit is pending and supersedes it
         except ValueError as exc:  # ParaloopError and other bad input
             self.error = str(exc)
@@ -338,14 +335,6 @@ class Studio(FileTransfers):
                 self.panels.set_u(round(self.state.u, 3))
                 self.worker.request(FRAME)
 
-    def _autosaver(self) -> None:
-        """Write the design as soon as it changes (at most every :data:`AUTOSAVE_SECONDS`),
-        on this thread: neither the worker nor a running search delays it."""
-        while not self._stop.is_set():
-            if self.state.wait_unsaved(0.5) and not self._stop.is_set():
-                self.autosave()
-                self._stop.wait(AUTOSAVE_SECONDS)
-
     def close(self) -> None:
         self.jobs.cancel()
         self._stop.set()
@@ -355,7 +344,10 @@ class Studio(FileTransfers):
         self.status.close()
         self.drive.close()
         self.jobs.wait(10.0)
-        self.autosave()
+        try:
+            self.state.autosave()
+        except OSError as exc:
+            self._autosave_failed(exc)
 
 
 def default_design_path() -> Path:
@@ -373,7 +365,10 @@ def run_studio(design_path: str | Path | None, host: str = "127.0.0.1", port: in
     design = design_mod.load_design(path)
     server = viser.ViserServer(host=host, port=port, verbose=False)
     autosave = autosave_path_for(opened, design.name)
-    migrate_autosave(autosave)  # from the data folder of earlier versions
+    try:
+        migrate_autosave(autosave)  # from the data folder of earlier versions
+    except OSError as exc:
+        print(f"could not move the old autosave to {autosave}: {exc}")
     studio = Studio(server, design, autosave)
     stop = threading.Event()
     signal.signal(signal.SIGINT, lambda *_: stop.set())

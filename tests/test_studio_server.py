@@ -336,19 +336,6 @@ def test_realization_panel_and_clearance_plot(studio):
     assert np.allclose(studio.scene.handles["bars"].batched_scales[:, 0], 0.01 * studio.scene.scale)
 
 
-@pytest.mark.parametrize("path", sorted(DESIGN.parent.glob("*.json")), ids=lambda p: p.stem)
-def test_every_example_opens(path):
-    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
-    app = studio_mod.Studio(server, design_mod.load_design(path), None)
-    try:
-        settle(app)
-        assert app.error is None and not app.notifications
-        assert "bars" in app.scene.handles and len(app.scene.gizmos) == len(app.state.design.poses)
-    finally:
-        app.close()
-        server.stop()
-
-
 def test_a_release_the_quick_search_misses_is_searched_fully_in_the_background(
         studio, monkeypatch):
     """The release draws at once (status: searching) and the full search, a job, then
