@@ -1,8 +1,8 @@
 """Drawing the design and its solution into the viser scene (called by the worker only,
 inside ``server.atomic()``).
 
-Scene tree: ``/targets/i`` gizmos (+ ``/frame``), ``/target_labels/i`` their labels (world
-frame, spread apart), ``/motion/path`` trajectory,
+Scene tree: ``/targets/i`` gizmos (+ ``/frame``), ``/target_labels/i`` their labels (placed
+apart on screen, ``app.labels``), ``/motion/path`` trajectory,
 ``/motion/frames`` sampled moving frames, ``/motion/current`` the animated frame with its
 ``/ellipsoid``, ``/factorizations`` six factorizations' axes (Fig. 5 colours, home pose),
 ``/loop/axes`` the selected loop's axes, ``/loop/bars``, ``/loop/elbows``, ``/loop/joints``

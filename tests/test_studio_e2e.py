@@ -97,7 +97,8 @@ def test_open_and_frame_all_show_the_whole_design(example, readonly_assets, brow
         assert studio.status.sizes.wait_idle(30)
         sentence = studio.panels.status.content.strip("*")
         assert not sentence_problems(sentence), sentence
-        page.get_by_text(sentence).first.wait_for(timeout=15_000)  # as the page shows it
+        assert wait_for(lambda: sentence in page.inner_text("body"), 45, 0.5), \
+            [t for t in page.inner_text("body").splitlines() if "loop" in t]  # as shown
         shown = {k: v["visible"] for k, v in page.scene.nodes.items()}
         assert shown["/loop/bars"] and shown["/loop/joints"], shown
         assert not any(shown[k] for k in ("/factorizations", "/loop/axes", "/motion/frames",
