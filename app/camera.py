@@ -12,6 +12,8 @@ from typing import Any
 import numpy as np
 import viser
 
+from app.labels import View
+
 #: Canvas pixels hidden by the control panel on the right (20 em of 16 px, plus its margin).
 PANEL_PX = 340.0
 #: Canvas assumed before a browser reports its size (the Playwright / laptop default).
@@ -57,16 +59,19 @@ def framing(points: np.ndarray, fov: float, size: tuple[float, float],
 
 
 def frame_all(server: viser.ViserServer, points: np.ndarray, keep_direction: bool = False
-              ) -> None:
+              ) -> View:
     """Frame ``points`` for new clients (initial camera) and every connected browser; with
     ``keep_direction`` each browser keeps its viewing direction (the *Frame all* button).
-    Clipping planes and the orbit range follow the distance, so a design in any unit shows."""
+    Clipping planes and the orbit range follow the distance, so a design in any unit shows.
+    Returns the view the labels are placed for: the initial camera's, or with
+    ``keep_direction`` the first framed browser's."""
     pts = np.asarray(points, float)
     cam0 = server.initial_camera
     position, look_at = framing(pts, cam0.fov, DEFAULT_SIZE)
     dist = float(np.linalg.norm(position - look_at))
     cam0.near, cam0.far = 1e-3 * dist, 1e3 * dist
     cam0.position, cam0.look_at = position, look_at
+    view = View(position, look_at, float(cam0.fov), DEFAULT_SIZE)
     for client in server.get_clients().values():
         cam: Any = client.camera
         try:
@@ -79,7 +84,10 @@ def frame_all(server: viser.ViserServer, points: np.ndarray, keep_direction: boo
             if np.linalg.norm(away) > 0 and np.all(np.isfinite(away)):
                 direction = away
         fov = cam.fov if cam.fov and cam.fov > 0 else cam0.fov
-        position, look_at = framing(pts, fov, (cam.image_width, cam.image_height), direction)
+        size = (float(cam.image_width), float(cam.image_height))
+        position, look_at = framing(pts, fov, size, direction)
+        if keep_direction and view.size is DEFAULT_SIZE and min(size) > 0:
+            view = View(position, look_at, float(fov), size)
         dist = float(np.linalg.norm(position - look_at))
         with client.atomic():
             cam.max_orbit_distance = max(1e4, 100.0 * dist)
@@ -87,3 +95,4 @@ def frame_all(server: viser.ViserServer, points: np.ndarray, keep_direction: boo
             cam.near, cam.far = 1e-3 * dist, 1e3 * dist
             cam.position = position  # viser keeps the orientation: look_at must come after
             cam.look_at = look_at
+    return view

@@ -22,7 +22,8 @@ import numpy as np
 from app.state import FabSettings
 from paraloop_core import pipeline, printed
 from paraloop_core.design import DriveSettings
-from paraloop_core.fabrication import animate, printable, profiles, spaces
+from paraloop_core.errors import FabricationError
+from paraloop_core.fabrication import animate, printable, profiles, sizing, spaces
 from paraloop_core.linkage import drive_plan
 from paraloop_core.linkage.drive import TWO_PI
 
@@ -108,14 +109,33 @@ def printer_of(fab: FabSettings) -> profiles.Printer:
 def options_of(fab: FabSettings) -> printable.Options:
     """The export options of the panel's settings (size 0: automatic)."""
     return printable.Options(printer=printer_of(fab), size_mm=fab.size_mm or None,
-                             ground=fab.ground,
+                             ground=fab.ground, ground_link=fab.ground_link,
                              joints="print-in-place" if fab.print_in_place else "auto")
 
 
 def size_of(sol: pipeline.Solution, fab: FabSettings) -> float:
     """The size (mm) the panel's settings print at: the panel's, else the expected automatic
     size (the parts' final size is the export's)."""
-    return fab.size_mm if fab.size_mm > 0 else printed.expected_size(sol, printer_of(fab))[0]
+    return print_size(sol.realization, fab)
+
+
+def print_size(real: Any, fab: FabSettings) -> float:
+    """:func:`size_of` for a realization."""
+    return fab.size_mm if fab.size_mm > 0 else printed.bed_size(real.points, printer_of(fab))
+
+
+def print_estimate(real: Any, fab: FabSettings) -> tuple[float, float | None]:
+    """``(size, bar width)`` (mm) the on-screen realization would print at with M3 screws:
+    :func:`print_size` and the thinnest bar the sizing gives it there (None when its joints
+    do not fit: *Export all* then realizes the loop again with roomier joints, as it may
+    anyway, so the exported parts can differ)."""
+    size = print_size(real, fab)
+    try:
+        plan = sizing.plan(real, printer_of(fab), profiles.MATERIALS["pla"], "m3",
+                           profiles.DEFAULT_ROD, size_mm=size)
+    except FabricationError:
+        return size, None
+    return size, float(plan.radii.min() * sizing.FLATS)
 
 
 def carve_spaces(sol: pipeline.Solution, fab: FabSettings,

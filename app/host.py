@@ -13,7 +13,6 @@ import viser
 from app.jobs import Jobs
 from app.scene import SceneView
 from app.state import StudioState
-from paraloop_core.design import Pose
 from paraloop_core.pipeline import Solution
 
 
@@ -43,8 +42,8 @@ class StudioHost(Protocol):
     def reframe(self) -> None:
         """Frame the camera after the next full update."""
 
-    def new_pose(self) -> Pose:
-        """A sensible new target pose for *Add pose*."""
+    def show_layer(self, name: str) -> None:
+        """Switch a scene layer on and tick its View or Construction checkbox (worker)."""
 
     def download_design(self, event: Any) -> None:
         """*Save design*: the current design file to the clicking browser."""

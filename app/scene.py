@@ -1,13 +1,18 @@
 """Drawing the design and its solution into the viser scene (called by the worker only,
 inside ``server.atomic()``).
 
-Scene tree: ``/targets/i`` gizmos (+ ``/frame``), ``/target_labels/i`` their labels (world
-frame, spread apart), ``/motion/path`` trajectory,
+Scene tree: ``/targets/i`` gizmos (+ ``/frame``), ``/target_labels/i`` their labels (placed
+apart on screen, ``app.labels``), ``/motion/path`` trajectory,
 ``/motion/frames`` sampled moving frames, ``/motion/current`` the animated frame with its
 ``/ellipsoid``, ``/factorizations`` six factorizations' axes (Fig. 5 colours, home pose),
-``/loop/axes`` the selected loop's axes and ``/loop/bars``, ``/loop/joints`` the linkage,
-``/loop/ghost`` the last realized linkage while the design has none, ``/loop/spaces/i`` the
-carved design spaces (moving with their links).
+``/loop/axes`` the selected loop's axes, ``/loop/bars``, ``/loop/elbows``, ``/loop/joints``
+the linkage as solid links (``app.links``) or ``/loop/parts/i`` per-link meshes given by
+:meth:`SceneView.set_parts`, ``/loop/ghost`` the last realized linkage while the design has
+none, ``/loop/spaces/i`` the carved design spaces (moving with their links).
+
+The paper's construction aids (factorization and loop axes, the inertia ellipsoid, moving
+frames, carved design spaces) are layers that start hidden (:data:`HIDDEN_AT_START`); the
+linkage and the trajectory show.
 """
 
 from __future__ import annotations
@@ -16,9 +21,9 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
-import trimesh
 import viser
 
+from app import camera, labels, links
 from paraloop_core.algebra import dq, poly
 from paraloop_core.design import Design
 from paraloop_core.errors import RealizationError
@@ -31,57 +36,29 @@ FACTOR_COLORS = np.array(
     dtype=np.uint8,
 )
 FACTOR_COLOR_NAMES = ("red", "green", "blue", "yellow", "purple", "cyan")
-#: Link colours: base link grey, end link (3) dark orange, the others orange.
-LINK_COLORS = np.array([[90, 90, 100], [230, 110, 0], [230, 110, 0], [190, 50, 0],
-                        [230, 110, 0], [230, 110, 0]], dtype=np.uint8)
-JOINT_COLOR = (185, 185, 195)
 PATH_COLOR = (40, 40, 70)
-#: View layers (GUI checkboxes) and the scene handles they show.
-LAYERS = {"Trajectory": ("path",), "Moving frames": ("frames",),
-          "Inertia ellipsoid": ("ellipsoid",), "Factorization axes": ("facts",),
-          "Loop axes": ("axes",), "Linkage": ("bars", "joints", "effector", "ghost")}
-#: The carved design spaces' layer (toggled in the Fabrication panel) and their colours.
+GHOST_COLOR = np.array([150, 150, 160], dtype=np.uint8)
+#: The linkage's layer and the scene handles it shows.
+LINKAGE = "Linkage"
+LINKAGE_KEYS = ("bars", "elbows", "joints", "effector", "ghost")
+#: Construction layers (the Construction folder's checkboxes) and the scene handles they show;
+#: the carved design spaces and the moving body's own axes are handled apart.
+CONSTRUCTION = {"Trajectory": ("path",), "Moving frames": ("frames",),
+                "Inertia ellipsoid": ("ellipsoid",), "Factorization axes": ("facts",),
+                "Loop axes": ("axes",), "Design spaces": ()}
 SPACES_LAYER = "Design spaces"
-SPACE_COLORS = np.vstack([LINK_COLORS[:1], FACTOR_COLORS[:5]])
+#: Layers hidden when the studio starts: the paper's construction aids.
+HIDDEN_AT_START = frozenset({"Moving frames", "Inertia ellipsoid", "Factorization axes",
+                             "Loop axes", SPACES_LAYER})
+SPACE_COLORS = np.vstack([links.LINK_COLORS[:1], FACTOR_COLORS[:5]])
 PATH_SAMPLES = 256
 FRAME_SAMPLES = 24
-
-_CYL = trimesh.creation.cylinder(radius=1.0, height=1.0, sections=20)
-_SPHERE = trimesh.creation.icosphere(subdivisions=2, radius=1.0)
 
 
 def design_scale(design: Design) -> float:
     """Characteristic length: the diagonal of the targets' bounding box (at least 1e-3)."""
     pos = design.pose_array[0]
     return max(float(np.linalg.norm(pos.max(0) - pos.min(0))), 1e-3)
-
-
-def label_positions(targets: np.ndarray, scale: float) -> np.ndarray:
-    """Label anchors ``(N, 3)`` for target positions ``(N, 3)``: pushed out from the targets'
-    centroid by 0.12 ``scale``, then spread so that no two are closer than 0.12 ``scale``
-    (a few relaxation steps; close or coincident targets get staggered heights)."""
-    p = np.asarray(targets, float)
-    away = p - p.mean(0)
-    norm = np.linalg.norm(away, axis=1, keepdims=True)
-    away = np.where(norm > 1e-9 * scale, away / np.maximum(norm, 1e-300), [0.0, 0.0, 1.0])
-    gap = 0.12 * scale
-    out = p + gap * away + np.arange(len(p))[:, None] * [0.0, 0.0, 1e-3 * scale]
-    for _ in range(20):
-        diff = out[:, None] - out[None]
-        dist = np.linalg.norm(diff, axis=-1) + np.eye(len(p)) * gap
-        push = np.clip(gap - dist, 0.0, None) / np.maximum(dist, 1e-9 * scale)
-        if not push.any():
-            break
-        out = out + 0.5 * np.einsum("ij,ijk->ik", push, diff)
-    return out
-
-
-def z_to(d: np.ndarray) -> np.ndarray:
-    """Unit ``wxyz`` ``(N, 4)`` of the shortest rotations taking +z to unit vectors ``(N, 3)``."""
-    q = np.stack([1.0 + d[:, 2], -d[:, 1], d[:, 0], np.zeros(len(d))], axis=-1)
-    flip = q[:, 0] < 1e-9  # d = -z: any half turn about a horizontal axis
-    q[flip] = [0.0, 1.0, 0.0, 0.0]
-    return q / np.linalg.norm(q, axis=-1, keepdims=True)
 
 
 def axis_segments(lines: np.ndarray, centers: np.ndarray, length: float) -> np.ndarray:
@@ -95,8 +72,8 @@ def axis_segments(lines: np.ndarray, centers: np.ndarray, length: float) -> np.n
 def _ellipsoid_vertices(design: Design) -> np.ndarray:
     """The inertia ellipsoid's mesh vertices in the body frame."""
     s = design.inertia
-    return s.center + (np.maximum(s.semi_axes, 1e-4 * design_scale(design)) * _SPHERE.vertices) \
-        @ s.axes
+    semi = np.maximum(s.semi_axes, 1e-4 * design_scale(design))
+    return s.center + (semi * links.SPHERE.vertices) @ s.axes
 
 
 class SceneView:
@@ -116,8 +93,9 @@ class SceneView:
         self.center = np.zeros(3)
         self.loop_colors = np.zeros((6, 2, 3), dtype=np.uint8)
         self.motion: np.ndarray | None = None
-        self.spaces: list[tuple[int, Any]] = []  # (link, mesh handle) of carved spaces
-        self.spaces_jf: np.ndarray | None = None  # the loop they were carved for
+        self.spaces = links.LinkMeshes(server, "/loop/spaces", SPACE_COLORS, 0.45)  # carved
+        self.parts = links.LinkMeshes(server, "/loop/parts", links.LINK_COLORS, 1.0)  # set_parts
+        self.view: labels.View | None = None  # the camera the labels are placed for
         self.end_link: np.ndarray | None = None  # (4, 3) S_3, L, R, E_3 with an end-effector
         # the last realized linkage (joint factors, home points, radius) and, while the design
         # on screen has no realization, the same shown faintly (a "ghost")
@@ -132,16 +110,15 @@ class SceneView:
         if not self.gizmos or abs(np.log(design_scale(design) / self.scale)) > np.log(2.0):
             self._rescale(design)
         if len(self.gizmos) != len(design.poses):
-            for g in self.gizmos:
-                g.remove()
-            self.gizmos, self.labels = [], []
+            self._remove_targets()
             for i, pose in enumerate(design.poses):
                 g = scene.add_transform_controls(
                     f"/targets/{i}", scale=0.3 * self.scale, disable_sliders=True,
                     position=pose.position, wxyz=pose.wxyz)
                 scene.add_frame(f"/targets/{i}/frame", axes_length=0.12 * self.scale,
                                 axes_radius=0.006 * self.scale)
-                self.labels.append(scene.add_label(f"/target_labels/{i}", f"S{i}"))
+                self.labels.append(scene.add_label(f"/target_labels/{i}", f"S{i}",
+                                                   anchor="center-center"))
                 g.on_update(self._gizmo_callback(i))
                 self.gizmos.append(g)
         for i, (g, pose) in enumerate(zip(self.gizmos, design.poses, strict=True)):
@@ -152,13 +129,35 @@ class SceneView:
             g.opacity = 0.25 if locked else 1.0
         self.place_labels(design.pose_array[0])
 
-    def place_labels(self, positions: np.ndarray) -> None:
-        """Move the target labels next to the targets at ``positions`` ``(N, 3)``."""
-        self.target_positions = np.asarray(positions, float)
-        if len(self.labels) == len(positions):
-            for label, at in zip(self.labels, label_positions(positions, self.scale),
-                                 strict=True):
-                label.position = at
+    def _remove_targets(self) -> None:
+        """Remove the gizmos (their frames with them) and their labels: no stale scene node
+        stays behind, in this page or in a page opened later."""
+        for handle in (*self.gizmos, *self.labels):
+            handle.remove()
+        self.gizmos, self.labels = [], []
+
+    def place_labels(self, positions: np.ndarray | None = None) -> None:
+        """Place the target labels (targets at ``positions`` ``(N, 3)``, default the last
+        ones) so that no two overlap in :attr:`view` (:func:`labels.place`)."""
+        if positions is not None:
+            self.target_positions = np.asarray(positions, float).reshape(-1, 3)
+        if len(self.labels) != len(self.target_positions) or not self.labels:
+            return
+        view = self.view or self.opening_view()
+        at = labels.place(self.target_positions, [lb.text for lb in self.labels], view)
+        for label, p in zip(self.labels, at, strict=True):
+            label.position = p
+
+    def opening_view(self) -> labels.View:
+        """The camera that frames :meth:`extent_points` when a design opens."""
+        fov = float(self.server.initial_camera.fov)
+        position, look_at = camera.framing(self.extent_points(), fov, camera.DEFAULT_SIZE)
+        return labels.View(position, look_at, fov, camera.DEFAULT_SIZE)
+
+    def set_view(self, view: labels.View) -> None:
+        """The camera the labels are placed for (a framing); re-places them."""
+        self.view = view
+        self.place_labels()
 
     def extent_points(self) -> np.ndarray:
         """World points ``(N, 3)`` that framing must show: targets, trajectory, the linkage
@@ -170,18 +169,17 @@ class SceneView:
         for jf, home in ((self.joint_factors, self.points_home),
                          (None, None) if self.ghost is None else self.ghost[:2]):
             if jf is not None and home is not None:
-                links = np.repeat(loops.link_poses(jf, t), 2, axis=1)  # (T, 12, 8)
-                parts.append(dq.transform_points(links, home).reshape(-1, 3))
+                poses = np.repeat(loops.link_poses(jf, t), 2, axis=1)  # (T, 12, 8)
+                parts.append(dq.transform_points(poses, home).reshape(-1, 3))
         pts = np.concatenate(parts)
         return pts[np.all(np.isfinite(pts), axis=1)]
 
     def _rescale(self, design: Design) -> None:
         """New characteristic length: grid, initial camera; sized handles are recreated."""
-        for g in self.gizmos:
-            g.remove()
+        self._remove_targets()
         for h in reversed(self.handles.values()):  # children before parents
             h.remove()
-        self.gizmos, self.labels, self.handles = [], [], {}
+        self.handles = {}
         self.scale = design_scale(design)
         low = design.pose_array[0][:, 2].min() - 0.25 * self.scale
         self.server.scene.add_grid("/grid", width=3 * self.scale, height=3 * self.scale,
@@ -220,13 +218,16 @@ class SceneView:
             h["ellipsoid"].vertices = verts
         else:
             h["ellipsoid"] = scene.add_mesh_simple(
-                "/motion/current/ellipsoid", verts, _SPHERE.faces, color=(120, 160, 230),
+                "/motion/current/ellipsoid", verts, links.SPHERE.faces, color=(120, 160, 230),
                 wireframe=True, opacity=0.5, cast_shadow=False, receive_shadow=False)
-        self.place_labels(sol.design.pose_array[0])
+        self.target_positions = sol.design.pose_array[0]
         rank = np.argsort(np.argsort(poly.t_to_param(sol.pose_parameters)))
         for i, label in enumerate(self.labels):
             lock = " (locked)" if i in sol.design.locked else ""
-            label.text = f"S{i} #{rank[i] + 1}{lock}" if i < len(rank) else f"S{i}"
+            text = f"S{i} #{rank[i] + 1}{lock}" if i < len(rank) else f"S{i}"
+            if label.text != text:
+                label.text = text
+        self.place_labels()  # after the texts: their widths count
 
     def draw_factorizations(self, sol: Any) -> None:
         """Axes of the six factorizations at the home pose, coloured as the paper's Fig. 5."""
@@ -241,24 +242,25 @@ class SceneView:
             self.handles["facts"] = self.server.scene.add_line_segments(
                 "/factorizations", segs, colors, thickness=1.5, thickness_units="screen")
 
-    # --- design spaces ----------------------------------------------------------------------
+    # --- per-link meshes ---------------------------------------------------------------------
     def set_spaces(self, joint_factors: np.ndarray, bodies: list) -> None:
         """Replace the carved design spaces: ``bodies[i]`` (vertices, faces) in link i's home
         frame, or None (nothing meshable)."""
-        for _, h in self.spaces:
-            h.remove()
-        self.spaces_jf = np.array(joint_factors, float)
-        self.spaces = [(i, self.server.scene.add_mesh_simple(
-            f"/loop/spaces/{i}", np.asarray(b[0], np.float32), np.asarray(b[1], np.uint32),
-            color=tuple(int(c) for c in SPACE_COLORS[i]), opacity=0.45, side="double",
-            cast_shadow=False, receive_shadow=False))
-            for i, b in enumerate(bodies) if b is not None]
+        self.spaces.set(joint_factors, bodies)
 
-    def spaces_current(self) -> bool:
-        """Whether the carved spaces belong to the loop on screen."""
-        jf = self.joint_factors
-        return (self.spaces_jf is not None and jf is not None
-                and np.array_equal(self.spaces_jf, jf))
+    def set_parts(self, joint_factors: np.ndarray,
+                  meshes: list[tuple[np.ndarray, np.ndarray] | None] | None) -> None:
+        """Draw the linkage of the loop ``joint_factors`` as the given per-link meshes
+        (``meshes[i]``: vertices ``(V, 3)`` in link i's home frame, the world frame at
+        ``t = inf``, design units, and faces ``(F, 3)``; None: nothing for that link)
+        moving with the slider, in place of the solid links; ``meshes`` None removes them.
+        They show only while that loop is on screen (an edit falls back to the solid links
+        until new meshes come). Call from the worker, inside ``server.atomic()``, then
+        :meth:`draw_frame` and :meth:`apply_layers`."""
+        if meshes is None:
+            self.parts.clear()
+        else:
+            self.parts.set(joint_factors, meshes)
 
     # --- loop and linkage -------------------------------------------------------------------
     def set_loop(self, sol: Any, preview: Any = None, preview_radius: float | None = None
@@ -299,10 +301,6 @@ class SceneView:
         old = self.handles.pop("effector", None)
         if old is not None:
             old.remove()
-        if (ee is None) != (self.end_link is None):  # the bar count changes: rebuild
-            for key in ("bars", "joints", "axes"):
-                if key in self.handles:
-                    self.handles.pop(key).remove()
         self.end_link = None if ee is None else ee.end_link()
         if ee is not None:
             self.handles["effector"] = self.server.scene.add_mesh_simple(
@@ -315,48 +313,36 @@ class SceneView:
         if self.motion is None or self.joint_factors is None or "current" not in self.handles:
             return
         t = poly.param_to_t(np.array([u]))
-        scene, h = self.server.scene, self.handles
+        h = self.handles
         pos, wxyz = dq.to_pos_wxyz(poly.evaluate_pose(self.motion, t)[0])
         h["current"].position, h["current"].wxyz = pos, wxyz
         axes = loops.axes_at(self.joint_factors, t)[0]
         home = self.points_home
         if home is None:  # axes only: centre them at the target centroid
             home = np.repeat(self.center[None], 12, axis=0)
-        links = loops.link_poses(self.joint_factors, t)[0]  # (6, 8)
-        if self.spaces and self.spaces_current():
-            pos, wxyz = dq.to_pos_wxyz(links)
-            for i, handle in self.spaces:
-                handle.position, handle.wxyz = pos[i], wxyz[i]
-        pts = dq.transform_points(np.repeat(links, 2, axis=0), home)
-        e = pts[1::2]  # E_i on A_i
-        s_next = np.roll(pts[0::2], -1, axis=0)  # S_{i+1} on A_i
-        axis_segs = axis_segments(axes, 0.5 * (e + s_next), 0.6 * self.scale)
-        r = self.bar_radius * thickness
-        starts, ends, bar_colors = pts[0::2], e, LINK_COLORS
+        poses = loops.link_poses(self.joint_factors, t)[0]  # (6, 8)
+        link_pos, link_wxyz = dq.to_pos_wxyz(poses)
+        for meshes in (self.spaces, self.parts):
+            if meshes.current(self.joint_factors):
+                meshes.move(link_pos, link_wxyz)
+        pts = dq.transform_points(np.repeat(poses, 2, axis=0), home)
+        mid = 0.5 * (pts[1::2] + np.roll(pts[0::2], -1, axis=0))  # joint i: E_i S_{i+1}
+        axis_segs = axis_segments(axes, mid, 0.6 * self.scale)
+        end = None
         if self.end_link is not None:  # end link: S_3 -> L and R -> E_3 around P
-            end = dq.transform_points(links[3], self.end_link)
-            starts = np.vstack([starts[:3], end[[0, 2]], starts[4:]])
-            ends = np.vstack([ends[:2], [ends[2], end[1], ends[3]], ends[4:]])
-            bar_colors = np.vstack([LINK_COLORS[:4], LINK_COLORS[3:]])
-            pose, wxyz = dq.to_pos_wxyz(links[3])
-            h["effector"].position, h["effector"].wxyz = pose, wxyz
-        bar_p, bar_q, bar_s = self._cylinders(starts, ends, r, r)
-        joint_p, joint_q, joint_s = self._cylinders(e, s_next, 1.8 * r, 6.0 * r, axes[:, :3])
+            end = dq.transform_points(poses[3], self.end_link)
+            h["effector"].position, h["effector"].wxyz = link_pos[3], link_wxyz[3]
         self._draw_ghost(t, thickness)
-        if "bars" not in h:
-            h["axes"] = scene.add_line_segments("/loop/axes", axis_segs, self.loop_colors,
-                                                thickness=4.0, thickness_units="screen")
-            h["bars"] = scene.add_batched_meshes_simple(
-                "/loop/bars", _CYL.vertices, _CYL.faces, bar_q, bar_p, batched_scales=bar_s,
-                batched_colors=bar_colors, lod="off")
-            h["joints"] = scene.add_batched_meshes_simple(
-                "/loop/joints", _CYL.vertices, _CYL.faces, joint_q, joint_p,
-                batched_scales=joint_s, batched_colors=JOINT_COLOR, lod="off")
-            return
-        h["axes"].points, h["axes"].colors = axis_segs, self.loop_colors
-        for key, (p, q, s) in (("bars", (bar_p, bar_q, bar_s)),
-                               ("joints", (joint_p, joint_q, joint_s))):
-            h[key].batched_positions, h[key].batched_wxyzs, h[key].batched_scales = p, q, s
+        if "axes" in h:
+            h["axes"].points, h["axes"].colors = axis_segs, self.loop_colors
+        else:
+            h["axes"] = self.server.scene.add_line_segments(
+                "/loop/axes", axis_segs, self.loop_colors, thickness=4.0,
+                thickness_units="screen")
+        solid = links.solid_links(pts, axes[:, :3], self.bar_radius * thickness, end)
+        for key, shape in (("bars", links.CYLINDER), ("elbows", links.SPHERE),
+                           ("joints", links.CYLINDER)):
+            links.draw_instances(self.server, h, key, f"/loop/{key}", shape, solid[key])
 
     def _draw_ghost(self, t: np.ndarray, thickness: float) -> None:
         """The last realized linkage, faint, while the design on screen has no realization."""
@@ -366,43 +352,28 @@ class SceneView:
             return
         jf, home, radius = self.ghost
         pts = dq.transform_points(np.repeat(loops.link_poses(jf, t)[0], 2, axis=0), home)
-        p, q, s = self._cylinders(pts[0::2], pts[1::2], radius * thickness, radius * thickness)
-        if "ghost" in self.handles:
-            g = self.handles["ghost"]
-            g.batched_positions, g.batched_wxyzs, g.batched_scales = p, q, s
-        else:
-            self.handles["ghost"] = self.server.scene.add_batched_meshes_simple(
-                "/loop/ghost", _CYL.vertices, _CYL.faces, q, p, batched_scales=s,
-                batched_colors=(150, 150, 160), opacity=0.3, lod="off", cast_shadow=False,
-                receive_shadow=False)
+        r = radius * thickness
+        p, q, s = links.cylinders(pts[0::2], pts[1::2], r, r)
+        links.draw_instances(self.server, self.handles, "ghost", "/loop/ghost", links.CYLINDER,
+                             links.Instances(p, q, s, np.tile(GHOST_COLOR, (len(p), 1))),
+                             opacity=0.3, cast_shadow=False, receive_shadow=False)
 
     def apply_layers(self, hidden: set[str]) -> None:
-        """Show or hide the view layers (the linkage also needs polyline points)."""
-        for layer, keys in LAYERS.items():
-            for key in keys:
-                handle = self.handles.get(key)
-                if handle is None:
-                    continue
-                show = layer not in hidden and (layer != "Linkage" or self.points_home is not None)
-                if handle.visible != show:
-                    handle.visible = show
-        show = SPACES_LAYER not in hidden and self.spaces_current()
-        for _, handle in self.spaces:
-            if handle.visible != show:
+        """Show or hide the layers: the linkage (solid links, or the per-link meshes of
+        :meth:`set_parts` when they belong to the loop on screen; it also needs points) and
+        the construction aids (:data:`CONSTRUCTION`)."""
+        parts = self.parts.current(self.joint_factors)
+        linkage = LINKAGE not in hidden and self.points_home is not None
+        shown = {key: linkage and not (parts and key in ("bars", "elbows", "joints"))
+                 for key in LINKAGE_KEYS}
+        for layer, keys in CONSTRUCTION.items():
+            shown.update((key, layer not in hidden) for key in keys)
+        for key, show in shown.items():
+            handle = self.handles.get(key)
+            if handle is not None and handle.visible != show:
                 handle.visible = show
-
-    @staticmethod
-    def _cylinders(a: np.ndarray, b: np.ndarray, radius: float, min_len: float,
-                   fallback: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
-        """Instance positions, wxyz and scales of cylinders from ``a`` to ``b`` (``(N, 3)``);
-        shorter ones get ``min_len`` along ``fallback`` directions (joint pins)."""
-        v = b - a
-        n = np.linalg.norm(v, axis=-1)
-        short = n < min_len
-        d = v / np.where(n > 0, n, 1.0)[:, None]
-        if fallback is not None:
-            fb = fallback / np.linalg.norm(fallback, axis=-1, keepdims=True)
-            d = np.where(short[:, None], fb, d)
-        length = np.maximum(n, min_len) if fallback is not None else np.maximum(n, 1e-9)
-        scales = np.stack([np.full(len(a), radius), np.full(len(a), radius), length], axis=-1)
-        return 0.5 * (a + b), z_to(d), scales
+        current = self.handles.get("current")
+        if current is not None and current.show_axes == ("Moving frames" in hidden):
+            current.show_axes = "Moving frames" not in hidden
+        self.parts.show(linkage and parts)
+        self.spaces.show(SPACES_LAYER not in hidden and self.spaces.current(self.joint_factors))

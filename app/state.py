@@ -8,6 +8,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import os
+import shutil
 import threading
 import time
 from collections.abc import Callable
@@ -15,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import platformdirs
 
 from paraloop_core import design as design_mod
 from paraloop_core.design import Design, Pose
@@ -25,20 +27,44 @@ MERGE_SECONDS = 1.5
 
 
 def user_data_dir() -> Path:
-    """The user data folder: ``$XDG_DATA_HOME/paraloop`` or ``~/.local/share/paraloop``."""
+    """The user data folder (uploaded meshes): ``$XDG_DATA_HOME/paraloop`` or
+    ``~/.local/share/paraloop``."""
     return Path(os.environ.get("XDG_DATA_HOME") or Path.home() / ".local" / "share") / "paraloop"
 
 
+def autosave_dir() -> Path:
+    """Where autosaves live: the user *state* folder (platformdirs ``user_state_dir``, on
+    Linux ``$XDG_STATE_HOME/paraloop`` or ``~/.local/state/paraloop``), ``autosave/``."""
+    return Path(platformdirs.user_state_dir("paraloop")) / "autosave"
+
+
+def legacy_autosave_dir() -> Path:
+    """Where autosaves lived before they moved to :func:`autosave_dir` (the data folder)."""
+    return user_data_dir() / "autosave"
+
+
 def autosave_path_for(design_path: Path | None, name: str) -> Path:
-    """The autosave file in the user data folder, never beside the design (a repository or a
-    read-only folder stays clean): ``autosave/<stem>-<hash of the resolved path>.json`` for an
-    opened file, so two files with one name or one design name never share it, else
-    ``autosave/<name>.json``."""
-    folder = user_data_dir() / "autosave"
+    """The autosave file in :func:`autosave_dir`, never beside the design (a repository or a
+    read-only folder stays clean): ``<stem>-<hash of the resolved path>.json`` for an opened
+    file, so two files with one name or one design name never share it, else
+    ``<name>.json``."""
+    folder = autosave_dir()
     if design_path is not None:
         key = hashlib.sha1(str(Path(design_path).resolve()).encode()).hexdigest()[:12]
         return folder / f"{_safe(Path(design_path).stem)}-{key}.json"
     return folder / f"{_safe(name)}.json"
+
+
+def migrate_autosave(path: Path) -> bool:
+    """Move an autosave of the same name from :func:`legacy_autosave_dir` to ``path`` when
+    ``path`` has none (its time kept, so the restore offer compares it with the design file
+    as before). True if one was moved."""
+    old = legacy_autosave_dir() / path.name
+    if path.exists() or not old.is_file():
+        return False
+    path.parent.mkdir(parents=True, exist_ok=True)
+    shutil.move(str(old), str(path))
+    return True
 
 
 def _safe(text: str) -> str:
@@ -102,8 +128,9 @@ def find_mesh(design: Design, folders: tuple[str | None, ...]) -> Design:
 @dataclasses.dataclass(frozen=True)
 class FabSettings:
     """Fabrication panel settings (validated by the panel): part size (0: automatic, the size
-    at which the parts meet the generic printer profile) and clearance in mm, carving radius in
-    mm (0: the realization's median design-space radius), voxels along a space (0: automatic,
+    at which the parts meet the generic printer profile) and clearance in mm, the grounding
+    column and its link (None: the best), carving radius in mm (0: the realization's median
+    design-space radius), voxels along a space (0: automatic,
     :func:`voxelspace.auto_resolution`), the carving
     order (a preset name or ``custom``) and its custom pairs text."""
 
@@ -111,6 +138,7 @@ class FabSettings:
     clearance_mm: float = 0.3
     print_in_place: bool = False
     ground: bool = True
+    ground_link: int | None = None
     space_radius_mm: float = 0.0
     resolution: int = 0
     order: str = "base first"
@@ -127,6 +155,7 @@ class StudioState:
 
     def __init__(self, design: Design, autosave_path: Path | None = None) -> None:
         self._lock = threading.RLock()
+        self._edited = threading.Condition(self._lock)  # wakes the autosave
         self.design = design
         self.committed = design
         self.undo_stack: list[Design] = []
@@ -141,6 +170,7 @@ class StudioState:
         self.thickness = 1.0  # bars drawn this many times their radius
         self.fab = FabSettings()
         self.tasks: dict[str, Any] = {}  # worker task ("carve", "export", "mesh") -> argument
+        self.last_moved: int | None = None  # the target the last edit dragged (advice)
         self._merge_key: str | None = None
         self._merge_time = 0.0
 
@@ -149,7 +179,7 @@ class StudioState:
         """Show ``design`` now; the edit becomes undoable at the next :meth:`commit`."""
         with self._lock:
             self.design = design
-            self.version += 1
+            self._changed()
 
     def commit(self, design: Design | None = None, merge: str | None = None) -> None:
         """Record ``design`` (default: the previewed one) as one undoable edit; edits with the
@@ -165,12 +195,19 @@ class StudioState:
             self._merge_key, self._merge_time = merge, now
             self.redo_stack.clear()
             self.design = self.committed = design
-            self.version += 1
+            self._changed()
 
     def edit(self, change: Callable[[Design], Design], merge: str | None = None) -> None:
         """Commit ``change(current design)`` atomically (see :meth:`commit` for ``merge``)."""
         with self._lock:
             self.commit(change(self.design), merge=merge)
+
+    def _changed(self) -> None:
+        """A new version (called holding the lock): wakes :meth:`wait_unsaved`; the pose
+        edits set :attr:`last_moved` after it."""
+        self.version += 1
+        self.last_moved = None
+        self._edited.notify_all()
 
     def undo(self) -> bool:
         with self._lock:
@@ -179,7 +216,7 @@ class StudioState:
             self.redo_stack.append(self.committed)
             self._merge_key = None
             self.design = self.committed = self.undo_stack.pop()
-            self.version += 1
+            self._changed()
             return True
 
     def redo(self) -> bool:
@@ -189,7 +226,7 @@ class StudioState:
             self.undo_stack.append(self.committed)
             self._merge_key = None
             self.design = self.committed = self.redo_stack.pop()
-            self.version += 1
+            self._changed()
             return True
 
     def snapshot(self) -> tuple[Design, int]:
@@ -207,6 +244,7 @@ class StudioState:
             pose = Pose(np.asarray(position, float).copy(), np.asarray(wxyz, float).copy())
             new = dataclasses.replace(d, poses=d.poses[:i] + (pose,) + d.poses[i + 1 :])
             (self.commit if commit else self.preview)(new)
+            self.last_moved = i
             return True
 
     def set_locked(self, i: int, locked: bool) -> bool:
@@ -222,6 +260,7 @@ class StudioState:
     def add_pose(self, pose: Pose) -> None:
         with self._lock:
             self.commit(dataclasses.replace(self.design, poses=self.design.poses + (pose,)))
+            self.last_moved = len(self.design.poses) - 1
 
     def remove_pose(self, i: int) -> bool:
         """Remove target ``i``; lock indices are renumbered. False if out of range or only four
@@ -250,6 +289,27 @@ class StudioState:
             return out
 
     # --- autosave ---------------------------------------------------------------------------
+    def wait_unsaved(self, timeout: float) -> bool:
+        """Block until the design differs from the last autosave (an edit, a drag step), at
+        most ``timeout`` seconds; whether it does. Independent of the worker: the design is
+        the state, a running search does not delay it."""
+        with self._edited:
+            return self._edited.wait_for(
+                lambda: self.autosave_path is not None and self.saved_version != self.version,
+                timeout)
+
+    def keep_saved(self, stop: threading.Event, failed: Callable[[OSError], None],
+                   gap: float) -> None:
+        """The autosave loop (a thread of its own, until ``stop``): each change is written at
+        once, further ones at most every ``gap`` seconds; ``failed`` hears of write errors."""
+        while not stop.is_set():
+            if self.wait_unsaved(0.5) and not stop.is_set():
+                try:
+                    self.autosave()
+                except OSError as exc:
+                    failed(exc)
+                stop.wait(gap)
+
     def autosave(self) -> bool:
         """Write the current design (an unfinished drag included) to the autosave file if it
         changed since the last write."""

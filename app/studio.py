@@ -21,32 +21,31 @@ import traceback
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import viser
 
 from app import camera
 from app.files import EXAMPLES, FileTransfers
 from app.jobs import Cancelled, Jobs
 from app.notices import Notices
-from app.panels.design import Panels
+from app.panels.design import Panels, writing_back
 from app.panels.drive import DrivePanel
 from app.panels.fabrication import FabricationPanel
 from app.plots import Plots
 from app.restore import RestoreOffer, offer_restore
-from app.scene import SceneView, design_scale
+from app.scene import HIDDEN_AT_START, SceneView
 from app.solver import Solver, incomplete
-from app.state import StudioState, autosave_path_for, rescaled
-from app.status import scale_warning, status_line, unit_factor
+from app.state import StudioState, autosave_path_for, migrate_autosave
+from app.status import StatusLine, details, error_headline, scale_warning
 from app.worker import FRAME, FULL, PREVIEW, REFINE, NewestWorker
 from paraloop_core import design as design_mod
 from paraloop_core import pipeline
-from paraloop_core.algebra import dq, poly
-from paraloop_core.design import Design, Pose
+from paraloop_core.design import Design
 from paraloop_core.errors import DesignFileError, ParaloopError
 from paraloop_core.motion.evolution import evolution_settings
 
-#: Seconds between autosave checks (any edit, a drag included, is on disk within 2 s).
-AUTOSAVE_SECONDS = 1.0
+#: Shortest time between two autosaves (s): an edit is written at once, further edits of a
+#: drag at most this long after it (so on disk within 2 s, whatever the worker is doing).
+AUTOSAVE_SECONDS = 0.5
 
 
 class Studio(FileTransfers):
@@ -57,6 +56,7 @@ class Studio(FileTransfers):
                  autosave_path: Path | None = None) -> None:
         self.server = server
         self.state = StudioState(design, autosave_path)
+        self.state.hidden = set(HIDDEN_AT_START)  # the construction aids start hidden
         self.solution: pipeline.Solution | None = None  # last valid solution (on screen)
         self.error: str | None = None  # why the current design has no solution
         self.downloads: list[tuple[str, bytes]] = []
@@ -64,26 +64,33 @@ class Studio(FileTransfers):
         self.notifications = self.notices.log  # (title, body, error), newest last
         self.jobs = Jobs(self._busy, self._bug)
         self.restore_offer: RestoreOffer | None = None
-        self._frame_pending = True  # frame the camera after the next full update
+        # frame the camera: "open" after the next full update, "keep" (Frame all: each page
+        # keeps its direction) at the next job
+        self._frame_pending: str | None = "open"
         self.solver = Solver()  # cached, warm-started solves
         self.timings: dict[int, list[float]] = {PREVIEW: [], FULL: [], REFINE: [], FRAME: []}
         self._need_sync = True
         self._drawn = (-1, -1)  # (version, level) of the design on screen
         self._refine_for = -1  # the version whose quick update awaits its REFINE job
         self._busy_frame: tuple[float, tuple] = (0.0, ())  # (when, what) a long job drew
-        self._progress: list[Any] = []
         self.scene = SceneView(server, self._on_gizmo)
         self.panels = Panels(server, self)
-        self.panels.frame.on_click(lambda _: self.frame_all(keep_direction=True))
+        self.status = StatusLine(self.panels.show_status, lambda: self.state.fab)
+        self.panels.frame.on_click(lambda _: self._frame_request())
         self.panels.cancel.on_click(lambda _: self.jobs.cancel())
-        self.panels.rescale.on_click(lambda _: self._rescale_units())
         self.fabrication = FabricationPanel(server, self)
         self.drive = DrivePanel(server, self, self.fabrication)
         self.plots = Plots(server)
-        self.worker = NewestWorker(self._job, on_slow=self._slow, on_slow_done=self._slow_done)
+        busy = self.panels.busy  # a job longer than 0.3 s: a line under the status, no toast
+        self.worker = NewestWorker(self._job, on_slow=lambda: setattr(busy, "visible", True),
+                                   on_slow_done=lambda: setattr(busy, "visible", False))
         self._stop = threading.Event()
         self._player = threading.Thread(target=self._play, name="studio-player", daemon=True)
         self._player.start()
+        self._saver = threading.Thread(  # the autosave: neither worker nor search delays it
+            target=self.state.keep_saved, name="studio-autosave", daemon=True,
+            args=(self._stop, self._autosave_failed, AUTOSAVE_SECONDS))
+        self._saver.start()
         self.request(FULL, sync=True)
 
     # --- requests from handlers -------------------------------------------------------------
@@ -103,19 +110,6 @@ class Studio(FileTransfers):
         elif end:  # a locked target: snap the gizmo back
             self.request(FULL, sync=True)
 
-    def new_pose(self) -> Pose:
-        """A pose for "Add pose": on the motion, halfway across the largest visiting gap."""
-        design, sol = self.state.design, self.solution
-        if sol is None or len(sol.pose_parameters) != len(design.poses):
-            last = design.poses[-1]
-            return Pose(last.position + 0.1 * design_scale(design), last.wxyz.copy())
-        u = np.sort(poly.t_to_param(sol.pose_parameters))
-        gaps = np.diff(np.append(u, u[0] + 1.0))
-        k = int(np.argmax(gaps))
-        pos, wxyz = dq.to_pos_wxyz(poly.evaluate_pose(
-            sol.motion, poly.param_to_t((u[k] + 0.5 * gaps[k]) % 1.0)))
-        return Pose(pos, wxyz)
-
     # --- feedback ---------------------------------------------------------------------------
     def notify(self, title: str, body: str, error: bool = False, cause: str | None = None
                ) -> None:
@@ -129,11 +123,25 @@ class Studio(FileTransfers):
 
     def reframe(self) -> None:
         """Frame the camera after the next full update (a design opened or replaced)."""
-        self._frame_pending = True
+        self._frame_pending = "open"
+
+    def show_layer(self, name: str) -> None:
+        """Switch a scene layer on and tick its checkbox (worker thread)."""
+        with writing_back():
+            self.panels.view.show(name, self.state.hidden)
+
+    def _frame_request(self) -> None:
+        """*Frame all*: frame every page at the worker's next job, keeping its direction."""
+        if self._frame_pending is None:
+            self._frame_pending = "keep"
+        self.request(FRAME)
 
     def frame_all(self, keep_direction: bool = False) -> None:
-        """Frame targets, trajectory and linkage in every page (left of the GUI panel)."""
-        camera.frame_all(self.server, self.scene.extent_points(), keep_direction)
+        """Frame targets, trajectory and linkage in every page (left of the GUI panel) and
+        place the target labels for that view (worker thread)."""
+        view = camera.frame_all(self.server, self.scene.extent_points(), keep_direction)
+        with self.server.atomic():
+            self.scene.set_view(view)
 
     def _busy(self, job: str | None) -> None:
         """Show *Cancel job* while a long job runs."""
@@ -142,24 +150,6 @@ class Studio(FileTransfers):
             self.panels.cancel.label = f"Cancel job ({job})"
         else:  # an export's parts may give the Drive folder its torque
             self.worker.request(FRAME)
-
-    def _rescale_units(self) -> None:
-        """*Rescale*: the design in a unit that brings its size near 1 (one undo step)."""
-        factor = unit_factor(design_scale(self.state.design))
-        self.state.edit(lambda d: rescaled(d, factor))
-        self.reframe()
-        self.request(FULL, sync=True)
-        self.notify("Design rescaled", f"every length x {factor:g}", cause="scale")
-
-    def _slow(self) -> None:
-        self._progress = [c.add_notification("Computing…", "updating the design", loading=True,
-                                             with_close_button=False)
-                          for c in self.server.get_clients().values()]
-
-    def _slow_done(self) -> None:
-        for handle in self._progress:
-            handle.remove()
-        self._progress = []
 
     # --- the worker's job -------------------------------------------------------------------
     def _job(self, level: int) -> None:
@@ -197,25 +187,24 @@ class Studio(FileTransfers):
             level = FULL
         stale = version != self._drawn[0] or level > self._drawn[1]
         if level >= PREVIEW and stale:
+            self.status.sizes.busy()
             self._solve_and_draw(design, version, level)
         else:
             with self.server.atomic():
                 self.scene.draw_frame(self.state.u, self.state.thickness)
                 self.scene.apply_layers(self.state.hidden)
+            self.status.refresh()  # the Fabrication settings may have changed the size
         key = level if level >= PREVIEW and stale else FRAME
         self.timings[key].append(time.perf_counter() - start)
         self.drive.update(self.solution, design.drive, level)  # planned on its own thread
-        if level == FULL and self._frame_pending:  # targets alone if nothing solved yet
-            self._frame_pending = False
-            self.frame_all()
+        frame, self._frame_pending = self._frame_pending, None
+        if frame == "keep" or (frame == "open" and level == FULL):
+            self.frame_all(keep_direction=frame == "keep")  # targets alone if nothing solved
+        else:
+            self._frame_pending = frame
 
-    def autosave(self) -> None:
-        """Write the design (unsaved drags included) to the autosave file if it changed."""
-        try:
-            self.state.autosave()
-        except OSError as exc:
-            self.notify("Autosave failed", f"{exc}; use Save design", error=True,
-                        cause="autosave")
+    def _autosave_failed(self, exc: OSError) -> None:
+        self.notify("Autosave failed", f"{exc}; use Save design", error=True, cause="autosave")
 
     def _solve(self, design: Design, level: int) -> tuple[pipeline.Solution, str]:
         """:meth:`Solver.solve`. A fit design's full update takes the fit of its last drag
@@ -243,8 +232,8 @@ class Studio(FileTransfers):
 
         def progress(fraction: float, message: str) -> None:
             check()
-            self.panels.status.content = f"**Status:** fitting: {message} " \
-                                         f"({100 * fraction:.0f} %)"
+            self.status.set(f"Fitting the motion to the poses ({100 * fraction:.0f} %)...",
+                            f"Fitting: {message}")
 
         with self.jobs.running("fit" if fit else "realization search"):
             sol, note = self.solver.solve(design, True, self.solution,
@@ -259,8 +248,11 @@ class Studio(FileTransfers):
         return sol, note
 
     def _frame_while_busy(self) -> None:
-        """During a long job on the worker (fit, full search): redraw the frame, at most 30
-        times a second, when the slider, Play or the layers moved it."""
+        """During a long job on the worker (fit, full search): *Frame all* at once, and redraw
+        the frame, at most 30 times a second, when the slider, Play or the layers moved it."""
+        if self._frame_pending == "keep":
+            self._frame_pending = None
+            self.frame_all(keep_direction=True)
         now = time.monotonic()
         if now - self._busy_frame[0] < 1.0 / 30.0:
             return
@@ -280,25 +272,22 @@ class Studio(FileTransfers):
         except Cancelled as exc:
             if exc.by_user:  # keep the last valid solution
                 self._drawn = (version, level)
-                what = "fit" if design.motion.method == "fit" else "realization search"
-                self.panels.status.content = f"**Status:** ⚠ {what} cancelled (the last " \
-                                             "valid result is shown; edit the design to " \
-                                             "start again)"
-                self.notify(f"{what.capitalize()} cancelled", "stopped as you asked",
-                            cause="job")
+                what = "Fit" if design.motion.method == "fit" else "Search"
+                self.status.set(f"{what} cancelled - the last result is shown; edit the "
+                                "design to start again", f"{what} cancelled with Cancel job.")
+                self.notify(f"{what} cancelled", "stopped as you asked", cause="job")
             return  # else a newer edit is pending and supersedes it
         except ValueError as exc:  # ParaloopError and other bad input
             self.error = str(exc)
             self._drawn = (version, level)
             shown = "the last valid design is shown" if self.solution else "nothing to show"
-            self.panels.status.content = f"**Status:** ⚠ {exc} ({shown})"
+            text = error_headline(exc, self.state.last_moved, self.solution is not None)
+            self.status.set(text, f"Cannot solve the design: {exc} ({shown}).")
             if full and self.state.version == version:  # superseded errors are dropped
-                self.notify("Cannot solve the design", f"{exc} ({shown})", error=True,
-                            cause="solve")
+                self.notify("Cannot solve the design", f"{text} (more in Details)",
+                            error=True, cause="solve")
             return
         self.notices.clear("solve")
-        if note and self.state.version == version:
-            self.notify("No collision-free realization", note, error=True, cause="solve")
         ms = 1e3 * (time.perf_counter() - t0)
         self.solution, self.error, self._drawn = sol, None, (version, level)
         if full and sol.realization is not None:
@@ -322,15 +311,22 @@ class Studio(FileTransfers):
             refine = (evolution_settings(design.evolution).starts
                       if design.motion.method == "fit" else 0)
             self.worker.request(REFINE)
-        self.panels.status.content = status_line(
-            dataclasses.replace(sol, design=design), full=full, ms=ms, note=note,
-            ghost=self.scene.ghost is not None, moved=preview is not None,
-            refine_starts=refine or None, searching=refine is not None and incomplete(sol))
+        sol = dataclasses.replace(sol, design=design)
+        searching = refine is not None and incomplete(sol)
+        text = self.status.solution(
+            details(sol, full=full, ms=ms, note=note, ghost=self.scene.ghost is not None,
+                    moved=preview is not None, refine_starts=refine or None,
+                    searching=searching),
+            sol=sol, full=full, moved=preview is not None, searching=searching,
+            refining=bool(refine), last_moved=self.state.last_moved)
+        if note and full and self.state.version == version:
+            self.notify("No collision-free loop", f"{text} (more in Details)", error=True,
+                        cause="solve")
         self.panels.rescale.visible = bool(scale_warning(design))
 
     def _play(self) -> None:
-        """Animation frames at 30 Hz and the autosave every :data:`AUTOSAVE_SECONDS`."""
-        last = saved = time.monotonic()
+        """Animation frames at 30 Hz."""
+        last = time.monotonic()
         while not self._stop.wait(1.0 / 30.0):
             now = time.monotonic()
             dt, last = now - last, now
@@ -338,18 +334,20 @@ class Studio(FileTransfers):
                 self.state.u = (self.state.u + self.state.speed * dt) % 1.0
                 self.panels.set_u(round(self.state.u, 3))
                 self.worker.request(FRAME)
-            if now - saved >= AUTOSAVE_SECONDS:
-                saved = now
-                self.autosave()
 
     def close(self) -> None:
         self.jobs.cancel()
         self._stop.set()
         self._player.join(timeout=2.0)
+        self._saver.join(timeout=2.0)
         self.worker.close()
+        self.status.close()
         self.drive.close()
         self.jobs.wait(10.0)
-        self.autosave()
+        try:
+            self.state.autosave()
+        except OSError as exc:
+            self._autosave_failed(exc)
 
 
 def default_design_path() -> Path:
@@ -367,6 +365,10 @@ def run_studio(design_path: str | Path | None, host: str = "127.0.0.1", port: in
     design = design_mod.load_design(path)
     server = viser.ViserServer(host=host, port=port, verbose=False)
     autosave = autosave_path_for(opened, design.name)
+    try:
+        migrate_autosave(autosave)  # from the data folder of earlier versions
+    except OSError as exc:
+        print(f"could not move the old autosave to {autosave}: {exc}")
     studio = Studio(server, design, autosave)
     stop = threading.Event()
     signal.signal(signal.SIGINT, lambda *_: stop.set())

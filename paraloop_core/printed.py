@@ -51,8 +51,14 @@ def expected_size(sol: Solution, printer: printable.Printer) -> tuple[float, flo
     else:
         _, pts6 = polyline.shortest_polyline(sol.loop.joint_factors)
         pts, length = np.repeat(pts6, 2, axis=0), polyline.polyline_length(pts6)
-    ext = float(np.max(np.ptp(pts, axis=0)))
-    return bed.bed_scale(pts, printer) * ext * 0.8, float(length), ext
+    return bed_size(pts, printer), float(length), float(np.max(np.ptp(pts, axis=0)))
+
+
+def bed_size(points: np.ndarray, printer: printable.Printer) -> float:
+    """Size (mm, longest side) at which a loop's polyline ``points`` ``(N, 3)`` would fill
+    the bed, less a fifth for the bosses and the base: what an automatic export aims at."""
+    pts = np.asarray(points, float)
+    return bed.bed_scale(pts, printer) * float(np.max(np.ptp(pts, axis=0))) * 0.8
 
 
 def realize_variant(sol: Solution, loop: int, d_fraction: float, rho_fraction: float,

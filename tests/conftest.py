@@ -51,5 +51,6 @@ def assert_generic(c: np.ndarray) -> None:
 
 @pytest.fixture(autouse=True)
 def _user_data_in_tmp(tmp_path_factory, monkeypatch):
-    """Tests never write into the user's data folder (studio autosaves of uploaded designs)."""
+    """Tests never write into the user's data or state folders (studio autosaves, meshes)."""
     monkeypatch.setenv("XDG_DATA_HOME", str(tmp_path_factory.getbasetemp() / "xdg"))
+    monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path_factory.getbasetemp() / "xdg-state"))

@@ -96,7 +96,7 @@ def test_scene_renders_linkage(app, page, tmp_path):
     time.sleep(0.5)
     assert changed_pixels(img, off) > 300, "the linkage is not visible"
     assert page.get_by_text("Connected").first.is_visible()
-    assert "ok" in app.panels.status.content
+    assert "Collision-free loop found" in app.panels.status.content
     assert not page.js_errors, page.js_errors
 
 
@@ -155,7 +155,7 @@ def test_slider_moves_linkage(app, page, tmp_path):
 
 
 def test_loop_picker_switches_loop(app, page):
-    page.get_by_role("combobox", name="6R loop").click()
+    page.get_by_role("combobox", name="Loop variant").click()
     page.get_by_role("option", name="loop 4 ·").click()
     assert wait_for(lambda: app.state.design.loop == 4)
     assert app.worker.wait_idle(30)

@@ -11,13 +11,11 @@ Never run ``playwright install``.
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import json
 import os
 import re
 import shutil
 import signal
-import socket
 import subprocess
 import sys
 import time
@@ -27,239 +25,67 @@ import numpy as np
 import pytest
 import viser
 from PIL import Image
-from viser import transforms as tf
 
 from app import studio as studio_mod
-from app.state import autosave_path_for
+from app.labels import overlaps
 from paraloop_core import design as design_mod
-from tests.browser_support import CHROMIUM, CHROMIUM_ARGS, playwright_sync, serve, wait_for
+from tests import browser_support
+from tests.browser_support import (
+    ASSETS,
+    EXAMPLES,
+    ROOT,
+    TV8,
+    click,
+    connect,
+    errors,
+    extent,
+    free_port,
+    inside_fraction,
+    label_boxes,
+    new_page,
+    number_box,
+    open_studio,
+    playwright_sync,
+    save_design,
+    serve,
+    shifted,
+    text_field,
+    tree_state,
+    upload,
+    wait_for,
+    wait_framed,
+)
+from tests.test_studio_plain import sentence_problems
 
 pytestmark = pytest.mark.browser
+browser = browser_support.browser  # the fixtures
+readonly_assets = browser_support.readonly_assets
 
-ROOT = Path(__file__).resolve().parent.parent
-ASSETS = ROOT / "assets"
-EXAMPLES = sorted(p.name for p in (ASSETS / "designs").glob("*.json"))
-TV8 = ASSETS / "designs" / "tv8.json"
-VIEWPORT = {"width": 1280, "height": 800}
-PANEL_WIDTH = 320  # viser's control panel, when its element cannot be found
 RESTORE = re.compile(r"^Restore changes from \d{1,2}:\d{2}")
 
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+def labels_apart(page, log, since: float, n: int) -> bool:
+    """Whether the page's ``n`` pose labels, seen by its last camera reported after
+    ``since``, have boxes that do not overlap (waits a little for the placed labels)."""
+    def apart() -> bool:
+        labels, report = page.scene.labels(), log.since(since)
+        if len(labels) != n or report is None or any("position" not in v
+                                                     for v in labels.values()):
+            return False
+        b = label_boxes(page, report, labels)
+        return not (overlaps(b, b) & ~np.eye(n, dtype=bool)).any()
 
-
-def tree_state(folder: Path) -> dict:
-    """Every path under ``folder`` with its size, mtime and content hash."""
-    out = {}
-    for p in sorted(folder.rglob("*")):
-        st = p.stat()
-        digest = hashlib.sha256(p.read_bytes()).hexdigest() if p.is_file() else "dir"
-        out[str(p.relative_to(folder))] = (st.st_size, st.st_mtime_ns, digest)
-    return out
-
-
-def set_writable(folder: Path, writable: bool) -> None:
-    paths = [folder, *folder.rglob("*")]
-    for p in (reversed(paths) if not writable else paths):
-        mode = 0o755 if p.is_dir() else 0o644
-        p.chmod(mode if writable else mode & ~0o222)
-
-
-# --- browser helpers ----------------------------------------------------------------------------
-@pytest.fixture(scope="module")
-def browser():
-    with playwright_sync.sync_playwright() as p:
-        b = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS, headless=True)
-        yield b
-        b.close()
-
-
-def new_page(browser, url: str, viewport=None):
-    """A page in its own context at ``url`` (1280x800, downloads on); ``page.js_errors``."""
-    ctx = browser.new_context(viewport=viewport or VIEWPORT, accept_downloads=True)
-    page = ctx.new_page()
-    page.js_errors = []  # type: ignore[attr-defined]
-    page.on("pageerror", lambda e: page.js_errors.append(str(e)))
-    page.goto(url)
-    page.wait_for_selector("canvas", timeout=60_000)
-    page.get_by_text("Connected").first.wait_for(timeout=60_000)
-    return page
-
-
-def connect(server, browser, viewport=None):
-    """Open a page on ``server``; returns (page, its viser client, its camera log)."""
-    logs = camera_logs(server)
-    known = set(server.get_clients())
-    page = new_page(browser, f"http://127.0.0.1:{server.get_port()}/", viewport)
-    assert wait_for(lambda: set(server.get_clients()) - known, 30), "browser never connected"
-    cid = next(iter(set(server.get_clients()) - known))
-    assert wait_for(lambda: cid in logs, 10)
-    return page, server.get_clients()[cid], logs[cid]
-
-
-class CameraLog:
-    """The cameras a browser reported (time, position, wxyz, fov), newest last."""
-
-    def __init__(self) -> None:
-        self.reports: list[tuple[float, np.ndarray, np.ndarray, float]] = []
-
-    def add(self, cam) -> None:
-        s = cam._state  # replaced as a whole by each report of the browser
-        self.reports.append((time.time(), s.position.copy(), s.wxyz.copy(), float(s.fov)))
-
-    def since(self, t: float):
-        return next((r for r in reversed(self.reports) if r[0] >= t), None)
-
-
-def camera_logs(server) -> dict:
-    """client id -> :class:`CameraLog` of every browser connecting to ``server`` from now on
-    (registered before the page opens, so no report after the first one is missed)."""
-    if not hasattr(server, "e2e_camera_logs"):
-        server.e2e_camera_logs = {}
-
-        def on_connect(client):
-            log = CameraLog()
-            log.add(client.camera)  # the browser's first report
-            client.camera.on_update(log.add)
-            server.e2e_camera_logs[client.client_id] = log
-
-        server.on_client_connect(on_connect)
-    return server.e2e_camera_logs
-
-
-def panel_left(page) -> float:
-    """Left edge of viser's control panel (the largest positioned box on the right)."""
-    box = page.evaluate("""() => {
-      const vw = window.innerWidth, vh = window.innerHeight;
-      let best = null;
-      for (const e of document.querySelectorAll('div')) {
-        const s = getComputedStyle(e), r = e.getBoundingClientRect();
-        if ((s.position === 'absolute' || s.position === 'fixed') && r.width > 150 &&
-            r.width < 0.6 * vw && r.right > 0.75 * vw && r.height > 0.3 * vh &&
-            (!best || r.width * r.height > best.width * best.height)) best = r;
-      }
-      return best && {left: best.left, width: best.width};
-    }""")
-    canvas = page.locator("canvas").first.bounding_box()
-    return box["left"] if box else canvas["x"] + canvas["width"] - PANEL_WIDTH
-
-
-def inside_fraction(page, report, pts: np.ndarray) -> float:
-    """Fraction of world points ``pts`` that the reported camera shows left of the panel."""
-    _, c, wxyz, fov = report
-    bb = page.locator("canvas").first.bounding_box()
-    right = panel_left(page)
-    pc = (np.asarray(pts, float) - c) @ tf.SO3(wxyz).as_matrix()  # OpenCV camera frame
-    f = (bb["height"] / 2) / np.tan(fov / 2)
-    z = np.where(pc[:, 2] > 1e-9, pc[:, 2], np.nan)
-    x = bb["x"] + bb["width"] / 2 + f * pc[:, 0] / z
-    y = bb["y"] + bb["height"] / 2 + f * pc[:, 1] / z
-    ok = (pc[:, 2] > 1e-9) & (x >= bb["x"]) & (x <= right) & (y >= bb["y"]) \
-        & (y <= bb["y"] + bb["height"])
-    return float(np.mean(ok))
-
-
-def extent(studio) -> np.ndarray:
-    try:
-        pts = np.asarray(studio.scene.extent_points(), float)
-    except AttributeError as exc:
-        pytest.fail(f"missing feature: SceneView.extent_points() ({exc})")
-    assert pts.ndim == 2 and pts.shape[1] == 3 and len(pts) >= 4, pts.shape
-    assert np.all(np.isfinite(pts))
-    return pts
-
-
-def wait_framed(page, log: CameraLog, pts: np.ndarray, since: float, timeout: float = 12.0):
-    """Wait until the browser reports a camera (after ``since``) showing >= 95 % of ``pts``
-    left of the panel; returns the last fraction seen."""
-    seen = [0.0]
-
-    def ok():
-        r = log.since(since)
-        seen[0] = inside_fraction(page, r, pts) if r is not None else 0.0
-        return seen[0] >= 0.95
-
-    wait_for(ok, timeout, 0.2)
-    return seen[0]
-
-
-def click(page, name, why: str) -> None:
-    """Click the button ``name``; a missing button fails with ``why``."""
-    button = page.get_by_role("button", name=name).first
-    try:
-        button.wait_for(state="visible", timeout=15_000)
-    except playwright_sync.TimeoutError:
-        pytest.fail(f"no visible button {name!r} ({why})")
-    button.click()
-
-
-def save_design(page) -> dict:
-    """The design JSON that "Save design" downloads."""
-    with page.expect_download(timeout=30_000) as dl:
-        page.get_by_role("button", name="Save design").click()
-    return json.loads(Path(dl.value.path()).read_text())
-
-
-def upload(page, path: Path) -> None:
-    with page.expect_file_chooser(timeout=15_000) as fc:
-        page.get_by_role("button", name="Load design").click()
-    fc.value.set_files(str(path))
-
-
-def errors(studio, start: int = 0) -> list:
-    return [n for n in studio.notifications[start:] if n[2]]
-
-
-def text_field(page, label: str):
-    """The input of the GUI text field labelled ``label`` (viser labels are not <label>s)."""
-    return page.get_by_text(label, exact=True).first \
-        .locator("xpath=ancestor::*[.//input][1]//input").first
-
-
-def number_box(page, handle):
-    """The number box of a viser number field (its own id) or slider (the box beside it)."""
-    el = page.locator(f'[id="{handle._impl.uuid}"]')
-    if el.evaluate("e => e.tagName") == "INPUT":
-        return el
-    return el.locator("xpath=..").locator("input[inputmode=decimal]")
-
-
-def open_studio(path: Path):
-    """Open ``path`` the way ``run_studio`` does (no autosave exists): (server, studio)."""
-    design = design_mod.load_design(path)
-    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
-    return server, studio_mod.Studio(server, design, autosave_path_for(path, design.name))
-
-
-def shifted(data: dict, offset, name: str) -> dict:
-    data = json.loads(json.dumps(data))
-    data["name"] = name
-    for pose in data["poses"]:
-        pose["position"] = list(np.asarray(pose["position"], float) + offset)
-    return data
+    return wait_for(apart, 10, 0.2)
 
 
 # --- 1. framing of the bundled examples ---------------------------------------------------------
-@pytest.fixture(scope="module")
-def readonly_assets(tmp_path_factory):
-    """A read-only copy of assets/designs and assets/meshes (designs refer to ../meshes)."""
-    root = tmp_path_factory.mktemp("ro") / "assets"
-    for sub in ("designs", "meshes"):
-        if (ASSETS / sub).exists():
-            shutil.copytree(ASSETS / sub, root / sub)
-    set_writable(root, False)
-    yield root
-    set_writable(root, True)
-
-
 @pytest.mark.parametrize("example", EXAMPLES)
 def test_open_and_frame_all_show_the_whole_design(example, readonly_assets, browser):
     """Each example opened from a read-only folder loads without errors and is framed left of
     the GUI panel on open and again by "Frame all" after the camera was moved away; the
-    folder stays untouched."""
+    folder stays untouched. The page shows one plain status sentence, the linkage without
+    the construction aids, and pose labels that do not overlap in its own camera (on open
+    and after "Frame all")."""
     before = tree_state(readonly_assets)
     server, studio = open_studio(readonly_assets / "designs" / example)
     page = None
@@ -268,10 +94,19 @@ def test_open_and_frame_all_show_the_whole_design(example, readonly_assets, brow
         page, client, log = connect(server, browser)
         assert studio.worker.wait_idle(60)
         assert not errors(studio), studio.notifications
-        assert "⚠" not in studio.panels.status.content, studio.panels.status.content
+        assert studio.status.sizes.wait_idle(30)
+        sentence = studio.panels.status.content.strip("*")
+        assert not sentence_problems(sentence), sentence
+        assert wait_for(lambda: sentence in page.inner_text("body"), 45, 0.5), \
+            [t for t in page.inner_text("body").splitlines() if "loop" in t]  # as shown
+        shown = {k: v["visible"] for k, v in page.scene.nodes.items()}
+        assert shown["/loop/bars"] and shown["/loop/joints"], shown
+        assert not any(shown[k] for k in ("/factorizations", "/loop/axes", "/motion/frames",
+                                          "/motion/current/ellipsoid")), shown
         pts = extent(studio)
         frac = wait_framed(page, log, pts, 0.0)
         assert frac >= 0.95, f"on open only {frac:.0%} of the extent is left of the panel"
+        assert labels_apart(page, log, 0.0, len(studio.state.design.poses))
 
         center, size = pts.mean(0), max(np.ptp(pts, axis=0).max(), 1e-3)
         away = np.array([1.0, 1.0, 1.0]) / np.sqrt(3.0)
@@ -285,6 +120,7 @@ def test_open_and_frame_all_show_the_whole_design(example, readonly_assets, brow
         click(page, "Frame all", "missing feature: top-level 'Frame all' button")
         frac = wait_framed(page, log, pts, t)
         assert frac >= 0.95, f"after 'Frame all' only {frac:.0%} is left of the panel"
+        assert labels_apart(page, log, t, len(studio.state.design.poses))
         assert not errors(studio), studio.notifications
         assert not page.js_errors, page.js_errors
     finally:
@@ -323,7 +159,7 @@ def test_four_browsers_share_one_studio(browser, tmp_path):
             assert wait_for(lambda pg=pg, k=k: rendered_pixels(pg, tmp_path, f"p{k}") > 1000,
                             20, 0.5), f"page {k} shows no scene"
         assert studio.state.design.loop != 4
-        pages[0].get_by_role("combobox", name="Loop").click()
+        pages[0].get_by_role("combobox", name="Loop variant").click()
         option = pages[0].get_by_role("option", name=re.compile(r"^loop 4\b"))
         try:
             option.wait_for(state="visible", timeout=10_000)
@@ -333,7 +169,7 @@ def test_four_browsers_share_one_studio(browser, tmp_path):
         assert wait_for(lambda: studio.state.design.loop == 4, 15)
         assert studio.worker.wait_idle(60)
         for pg in pages[1:]:
-            playwright_sync.expect(pg.get_by_role("combobox", name="Loop")).to_have_value(
+            playwright_sync.expect(pg.get_by_role("combobox", name="Loop variant")).to_have_value(
                 re.compile(r"^loop 4\b"), timeout=15_000)
         assert len(server.get_clients()) == 4
         for k, pg in enumerate(pages):
@@ -347,7 +183,8 @@ def test_four_browsers_share_one_studio(browser, tmp_path):
 
 # --- 2. autosave and restore after a crash ------------------------------------------------------
 def start_process(design: Path, port: int, xdg: Path, log: Path) -> subprocess.Popen:
-    env = {**os.environ, "XDG_DATA_HOME": str(xdg), "PYTHONUNBUFFERED": "1"}
+    env = {**os.environ, "XDG_DATA_HOME": str(xdg), "XDG_STATE_HOME": str(xdg / "state"),
+           "PYTHONUNBUFFERED": "1"}
     with log.open("ab") as out:
         proc = subprocess.Popen([sys.executable, "-m", "app.studio", str(design),
                                  "--port", str(port)], cwd=ROOT, env=env, stdout=out,
@@ -384,7 +221,7 @@ def test_autosave_survives_a_kill_and_restores_on_request(browser, tmp_path):
         name.fill("E2E autosaved name")
         name.press("Enter")
         time.sleep(2.5)
-        autosaves = list((xdg / "paraloop" / "autosave").glob("tv8-*.json"))
+        autosaves = list((xdg / "state" / "paraloop" / "autosave").glob("tv8-*.json"))
         assert len(autosaves) == 1, (autosaves, log.read_text()[-2000:])
         assert design_mod.load_design(autosaves[0]).name == "E2E autosaved name"
         stop_process(procs[0])
@@ -453,7 +290,7 @@ def test_save_load_undo_through_buttons(app, page, tmp_path):
         app.notifications[start:]
     assert not errors(app, start), app.notifications[start:]
     status = app.panels.status.content
-    assert "ok" in status and "⚠" not in status, status
+    assert "Collision-free loop found" in status, status
     assert save_design(page)["name"] == "E2E loaded design"
 
     click(page, "Undo", "Undo button")

@@ -116,10 +116,10 @@ def test_carve_draws_animated_spaces_and_the_bound(sun):
     for i, handle in scene.spaces:
         assert np.allclose(handle.position, pos[i], atol=1e-5)
         assert np.allclose(np.abs(handle.wxyz @ wxyz[i]), 1.0, atol=1e-5)
-    fab.show.value = False
+    sun.panels.layers["Design spaces"].value = False  # the Construction folder's box
     settle(sun)
     assert not any(h.visible for _, h in scene.spaces)
-    fab.show.value = True
+    sun.panels.layers["Design spaces"].value = True
     settle(sun)
     assert all(h.visible for _, h in scene.spaces)
     # a new loop makes them stale: hidden until carved again

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from app import studio as studio_mod
-from app.panels.design import parse_fixed
+from app.panels.realization import parse_fixed
 from app.state import StudioState, autosave_path_for
 from app.worker import FULL, PREVIEW, NewestWorker
 from paraloop_core import design as design_mod
@@ -20,9 +20,10 @@ DESIGN = Path(__file__).resolve().parent.parent / "assets" / "designs" / "tv8.js
 
 
 def test_autosave_location(tmp_path, monkeypatch):
-    """Never beside the design; one file per opened path (two a.json never share one)."""
-    monkeypatch.setenv("XDG_DATA_HOME", str(tmp_path / "data"))
-    folder = tmp_path / "data" / "paraloop" / "autosave"
+    """Never beside the design, in the user state folder; one file per opened path (two
+    a.json never share one)."""
+    monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path / "state"))
+    folder = tmp_path / "state" / "paraloop" / "autosave"
     one, two = autosave_path_for(tmp_path / "a.json", "x"), autosave_path_for(
         tmp_path / "sub" / "a.json", "x")
     assert one.parent == two.parent == folder and one != two

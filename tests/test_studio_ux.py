@@ -16,7 +16,6 @@ from app import camera
 from app import studio as studio_mod
 from app.notices import Notices
 from app.panels.design import loop_label, loop_of_label, score_text
-from app.scene import label_positions
 from app.state import rescaled
 from paraloop_core import design as design_mod
 from paraloop_core import pipeline
@@ -60,15 +59,6 @@ def test_framing_keeps_every_point_left_of_the_panel(seed, size):
     px = project(pts, position, look_at, np.radians(75.0), size)
     spread = np.ptp(px, axis=0)
     assert spread.max() > 0.3 * min(size[0] - camera.PANEL_PX, size[1])
-
-
-def test_label_positions_never_overlap():
-    scale = 2.0
-    targets = np.array([[0, 0, 0], [0.01, 0, 0], [0.01, 0.005, 0], [1.5, 0, 0.0]])
-    labels = label_positions(targets, scale)
-    gaps = np.linalg.norm(labels[:, None] - labels[None], axis=-1) + np.eye(4) * 10
-    assert gaps.min() > 0.1 * scale
-    assert np.all(np.linalg.norm(labels - targets, axis=1) < 0.6 * scale)  # still nearby
 
 
 class _Handle:
@@ -155,7 +145,7 @@ def test_cancel_job_stops_a_fit():
         assert "fit" in busy
         click(app.panels.cancel)
         settle(app)
-        assert "fit cancelled" in app.panels.status.content
+        assert "Fit cancelled" in app.panels.status.content
         assert app.solution is not None and not app.panels.cancel.visible
     finally:
         app.close()
@@ -183,14 +173,15 @@ def test_unusual_scale_is_flagged_and_rescaled(tv8):
     big = rescaled(tv8.state.design, 1e4)
     upload(tv8, "big.json", json.dumps(design_mod.design_to_dict(big)).encode())
     settle(tv8)
-    assert "units" in tv8.panels.status.content and tv8.panels.rescale.visible
+    assert "units" in tv8.panels.details.content and tv8.panels.rescale.visible
+    assert "see Rescale" in tv8.panels.status.content
     cam = tv8.server.initial_camera  # framed in the big unit too
     assert inside_free_view(tv8.scene.extent_points(), np.asarray(cam.position),
                             np.asarray(cam.look_at), cam.fov)
     assert cam.far > np.linalg.norm(np.asarray(cam.position) - np.asarray(cam.look_at))
     click(tv8.panels.rescale)
     settle(tv8)
-    assert not tv8.panels.rescale.visible and "units" not in tv8.panels.status.content
+    assert not tv8.panels.rescale.visible and "units" not in tv8.panels.details.content
     original = design_mod.load_design(DESIGNS / "tv8.json")
     assert np.allclose(tv8.state.design.pose_array[0], original.pose_array[0])
     assert tv8.solution.realization is not None
@@ -200,6 +191,9 @@ def test_fabrication_results_are_marked_stale(tv8):
     click(tv8.fabrication.carve)
     assert tv8.worker.wait_idle(60) and tv8.jobs.wait(120) and tv8.worker.wait_idle(60)
     assert tv8.fabrication.bound.content.startswith("**Continuous-motion bound")
+    # carved to be seen: the Construction folder's layer is switched on
+    assert tv8.panels.layers["Design spaces"].value and "Design spaces" not in tv8.state.hidden
+    assert tv8.scene.spaces and all(h.visible for _, h in tv8.scene.spaces)
     gizmo(tv8, 3, position=tv8.state.design.poses[3].position + 0.01)
     assert tv8.fabrication.bound.content.startswith("*(stale")
     assert not any(h.visible for _, h in tv8.scene.spaces)
@@ -235,7 +229,7 @@ def test_a_fit_design_previews_from_one_start_and_fits_fully_on_release():
         seen = []
         draw = app._solve_and_draw
         app._solve_and_draw = lambda *a: (draw(*a), seen.append((
-            a[2], app.solution.fit, app.solution.realization, app.panels.status.content)))
+            a[2], app.solution.fit, app.solution.realization, app.panels.details.content)))
         gizmo(app, 7, position=p + 0.02, phases=("end",))
         (lvl1, fit1, real1, status1), (lvl2, fit2, _, status2) = seen
         assert (lvl1, lvl2) == (studio_mod.FULL, studio_mod.REFINE)
@@ -303,10 +297,10 @@ def test_a_fit_release_whose_quick_search_misses_ends_realized(monkeypatch, drag
         gizmo(app, 7, position=p + 0.3, phases=("update",))  # the preview's one-start fit
         gizmo(app, 7, position=p + 0.3, phases=("end",))
         first = next(s for lvl, _, s in seen if lvl == studio_mod.FULL)
-        assert "searching for a collision-free realization" in first
+        assert "Searching for a collision-free loop" in first
         lvl, real, status = seen[-1]
         assert lvl == studio_mod.REFINE and real is not None
-        assert "searching" not in status and "**Status:** ok" in status
+        assert "Searching" not in status and "Collision-free loop found" in status
         assert not solver_mod.incomplete(app.solution)
         # the drag's fit with a complete search would also do: never an incomplete cache
         assert all(not solver_mod.incomplete(s) for s, _ in app.solver._cache.values())

@@ -138,7 +138,7 @@ def _options(args: argparse.Namespace) -> printable.Options:
     return printable.Options(printer=printer, material=profiles.MATERIALS[args.material],
                              joints=args.joints, rod=profiles.RODS[args.rod],
                              size_mm=args.size_mm, ground=not args.no_base,
-                             samples=args.samples)
+                             ground_link=args.ground_link, samples=args.samples)
 
 
 def _bed(text: str) -> tuple[float, float, float]:
@@ -177,6 +177,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         "reason")
     p.add_argument("--rod", choices=sorted(profiles.RODS), default=profiles.DEFAULT_ROD.name,
                    help="the grounding rod (also the grounded joint's axle)")
+    p.add_argument("--ground-link", type=int, choices=range(6), default=None,
+                   metavar="{0..5}", help="the link the grounding rod holds (default: the one "
+                   "that stands best)")
     p.add_argument("--no-base", action="store_true",
                    help="no grounding rod and base plate (the loop is held by hand)")
     p.add_argument("--samples", type=outputs.int_range(8, 100_000), default=720,

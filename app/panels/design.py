@@ -14,10 +14,14 @@ import viser
 
 from app.panels.effector import EffectorPanel
 from app.panels.evolution import EvolutionPanel
-from app.scene import FACTOR_COLOR_NAMES, LAYERS
+from app.panels.realization import RealizationPanel
+from app.panels.view import ViewPanel
+from app.scene import design_scale
+from app.state import rescaled
+from app.status import unit_factor
 from app.worker import FRAME, FULL
-from paraloop_core.algebra import factor
-from paraloop_core.design import CRITERIA, METHODS, Design
+from paraloop_core.algebra import dq, poly
+from paraloop_core.design import Design, Pose
 from paraloop_core.linkage import loops
 from paraloop_core.motion.evolution import evolution_settings
 
@@ -25,12 +29,6 @@ if TYPE_CHECKING:
     from app.host import StudioHost
 
 _sync = threading.local()
-LABELS = "ABC"
-
-
-def order_name(j: int) -> str:
-    """Norm order of factorization ``j``, e.g. ``'BAC'``."""
-    return "".join(LABELS[k] for k in factor.NORM_ORDERS[j])
 
 
 def loop_label(k: int, singularity: float | None = None, status: str = "") -> str:
@@ -69,6 +67,31 @@ def loop_status(singularity: np.ndarray) -> list[str]:
 
 #: Smallest half-range of the mu slider; it widens to show any mu of the design.
 MU_RANGE = 5.0
+#: The Motion folder's dropdown entries for the design file's values.
+METHOD_NAMES = {"four-pose": "Through 4 poses", "fit": "Fitted to all poses"}
+FAMILY_NAMES = ("first", "second")
+CRITERION_NAMES = {"length": "Shortest path", "base-axes": "Base joints through targets",
+                   "end-axes": "End joints through targets",
+                   "extra-poses": "Closest to extra poses", "smooth-drive": "Smoothest drive"}
+
+
+def pose_in_gap(design: Design, sol: Any) -> Pose:
+    """A pose for *Add pose*: on the motion of ``sol``, halfway across the largest gap between
+    visited targets (no solution of ``design``: beside its last pose)."""
+    if sol is None or len(sol.pose_parameters) != len(design.poses):
+        last = design.poses[-1]
+        return Pose(last.position + 0.1 * design_scale(design), last.wxyz.copy())
+    u = np.sort(poly.t_to_param(sol.pose_parameters))
+    gaps = np.diff(np.append(u, u[0] + 1.0))
+    k = int(np.argmax(gaps))
+    pos, wxyz = dq.to_pos_wxyz(poly.evaluate_pose(
+        sol.motion, poly.param_to_t((u[k] + 0.5 * gaps[k]) % 1.0)))
+    return Pose(pos, wxyz)
+
+
+def value_of(names: dict[str, str], label: str) -> str:
+    """The design file's value of a dropdown entry ``label``."""
+    return next(k for k, v in names.items() if v == label)
 
 
 def mu_range(mu: float | None) -> float:
@@ -99,11 +122,13 @@ def writing_back() -> Iterator[None]:
 class Panels:
     """All GUI folders; ``studio`` supplies the state, the worker and file transfers."""
 
-    def __init__(self, server: viser.ViserServer, studio: StudioHost,
-) -> None:
+    def __init__(self, server: viser.ViserServer, studio: StudioHost) -> None:
         self.studio = studio
         gui = server.gui
-        self.status = gui.add_markdown("**Status:** starting")
+        self.status = gui.add_markdown("**Opening the design...**")
+        self.busy = gui.add_markdown("*Working on the design...*", visible=False)
+        with gui.add_folder("Details", expand_by_default=False):
+            self.details = gui.add_markdown("*Nothing computed yet.*")
         self.frame = gui.add_button("Frame all", icon=viser.Icon.FOCUS_CENTERED,
                                     hint="point the camera at the targets, the motion and the "
                                          "linkage (left of this panel)")
@@ -113,12 +138,16 @@ class Panels:
         self.rescale = gui.add_button("Rescale", visible=False,
                                       hint="change the design's unit so its size is near 1 "
                                            "(one Undo step)")
+        self.view = ViewPanel(gui, studio.state.hidden)
+        self.layers = self.view.layers
+        self.thickness = self.view.thickness
         with gui.add_folder("Design"):
             self.name = gui.add_text("Name", initial_value="", hint="the design's name (files "
                                      "and downloads are named after it)")
             self.undo = gui.add_button("Undo", icon=viser.Icon.ARROW_BACK_UP,
                                        hint="undo the last edit (a whole drag is one edit)")
-            self.redo = gui.add_button("Redo", icon=viser.Icon.ARROW_FORWARD_UP)
+            self.redo = gui.add_button("Redo", icon=viser.Icon.ARROW_FORWARD_UP,
+                                       hint="redo the edit you last undid")
             self.save = gui.add_button("Save design", icon=viser.Icon.DEVICE_FLOPPY,
                                        hint="download the design file (JSON)")
             self.load = gui.add_upload_button("Load design", icon=viser.Icon.UPLOAD,
@@ -139,74 +168,54 @@ class Panels:
                                               "Remove pose removes")
             self.add_pose = gui.add_button("Add pose", hint="a new target on the motion, in its "
                                            "largest gap (drag its gizmo to move it)")
-            self.remove_pose = gui.add_button("Remove pose", hint="at least four stay")
+            self.remove_pose = gui.add_button("Remove pose", hint="remove the pose picked "
+                                              "above (at least four stay)")
         with gui.add_folder("Motion"):
             self.method = gui.add_dropdown(
-                "Motion from", METHODS, hint="four-pose: the cubic motion through four target "
-                "poses (paper Sec. 4.2); fit: a cubic motion fitted to five or more targets by "
-                "curve evolution (Sec. 4.3)")
+                "Motion from", tuple(METHOD_NAMES.values()),
+                hint="Through 4 poses: the cubic motion through exactly four target poses "
+                "(paper Sec. 4.2, 'four-pose'); Fitted to all poses: a cubic motion fitted to "
+                "five or more targets (curve evolution, Sec. 4.3, 'fit')")
             self.family = gui.add_dropdown(
-                "Solution family", ("0", "1"), hint="four poses admit two one-parameter "
-                "families of cubic motions (Sec. 4.2); mu picks one motion in the family")
+                "Motion family", FAMILY_NAMES, hint="four poses admit two one-parameter "
+                "families of cubic motions (the paper's solution families 0 and 1, Sec. 4.2); "
+                "Motion shape picks one motion in the family")
             self.mu = gui.add_slider(
-                "Family parameter mu", min=-MU_RANGE, max=MU_RANGE, step=0.001,
-                initial_value=0.0, hint="the free parameter of the family (a number, no unit; "
-                "Sec. 4.2); the range widens to fit")
-            self.mu_inf = gui.add_checkbox("mu at infinity", initial_value=True,
-                                           hint="the family's motion at mu = infinity")
+                "Motion shape", min=-MU_RANGE, max=MU_RANGE, step=0.001,
+                initial_value=0.0, hint="which motion of the family: the family parameter "
+                "μ (mu) of Sec. 4.2, a number without unit; the range widens to fit")
+            self.mu_inf = gui.add_checkbox(
+                "Neutral shape", initial_value=True,
+                hint="the family's motion at μ = ∞ (mu at infinity, Sec. 4.2)")
             self.criterion = gui.add_dropdown(
-                "Choose mu by", CRITERIA, initial_value="length",
-                hint="base-axes / end-axes: joint axes through the target points; length: "
-                "shortest path of the object, weighted by its inertia ellipsoid; extra-poses: "
-                "closest to the extra poses (Sec. 4.2)")
-            self.best_mu = gui.add_button("Find best mu", hint="scan the family for the mu "
-                                          "that is best by the criterion above")
+                "Best shape means", tuple(CRITERION_NAMES.values()),
+                initial_value=CRITERION_NAMES["length"],
+                hint="what Find best shape optimizes (the paper's criteria, Sec. 4.2): the "
+                "shortest path of the object weighted by its inertia ellipsoid ('length'), "
+                "joint axes of the base or end link through the target points ('base-axes', "
+                "'end-axes'), closest to the extra poses ('extra-poses'), or the smoothest "
+                "motor drive ('smooth-drive')")
+            self.best_mu = gui.add_button("Find best shape", hint="scan the family for the "
+                                          "motion shape (μ) that is best by the choice above")
         self.evolution = EvolutionPanel(gui, self._evolution, handler)
         with gui.add_folder("Loop"):
             self.loop = gui.add_dropdown(
-                "6R loop", tuple(loop_label(k) for k in range(9)),
-                hint="the nine 6R loops of the motion (Sec. 4.3): angle-symmetric or "
-                "double-Bennett; score = singularity measure (Sec. 4.4), higher stays farther "
-                "from a jamming, singular pose")
-            legend = ", ".join(f"{c} {order_name(j)}" for j, c in enumerate(FACTOR_COLOR_NAMES))
-            gui.add_markdown(f"Axes of the six factorizations: {legend}.")
-        self.real: dict[str, Any] = {}
-        with gui.add_folder("Realization"):
-            r = self.real
-            r["enabled"] = gui.add_checkbox(
-                "Find collision-free bars", initial_value=True,
-                hint="search bars on the loop's axes that never collide over the whole motion "
-                     "(Sec. 5.1, exact for the continuous cycle)")
-            r["p"] = gui.add_number("Shift steps (p)", initial_value=10.0, min=1e-3, step=0.5,
-                                    hint="bar ends move along the axes in steps of the loop "
-                                         "length / p (Sec. 5.1)")
-            r["d_fraction"] = gui.add_number(
-                "Joint spacing (x loop length)", initial_value=0.01, min=1e-6, step=0.005,
-                hint="d, the distance between the two bar ends on one axis, as a fraction of "
-                     "the initial polyline's length (used when the value below is 0)")
-            r["rho_fraction"] = gui.add_number(
-                "Bar radius (x joint spacing)", initial_value=0.25, min=1e-6, step=0.05,
-                hint="rho as a fraction of d (used when the value below is 0)")
-            r["d"] = gui.add_number("Joint spacing d (units, 0 = auto)", initial_value=0.0,
-                                    min=0.0, step=0.01, hint="in design units")
-            r["rho"] = gui.add_number("Bar radius rho (units, 0 = auto)", initial_value=0.0,
-                                      min=0.0, step=0.01, hint="in design units")
-            r["fixed"] = gui.add_text("Held bar ends", initial_value="",
-                                      hint="vertex=offset pairs in design units along the "
-                                           "vertex's axis, e.g. 0=0.1, 3=-0.2")
+                "Loop variant", tuple(loop_label(k) for k in range(9)),
+                hint="one motion gives nine 6R loops (Sec. 4.3), angle-symmetric or "
+                "double-Bennett; the score is the singularity measure S (Sec. 4.4): higher "
+                "stays farther from a jamming, singular pose")
+        self.realization = RealizationPanel(gui, studio, handler)
+        self.real = self.realization.inputs
         self.effector = EffectorPanel(gui, studio, handler)
         with gui.add_folder("Animation"):
             self.u = gui.add_slider("Cycle position", min=0.0, max=1.0, step=0.001,
                                     initial_value=0.0,
-                                    hint="0 .. 1 runs once through the whole motion")
+                                    hint="0 .. 1 runs once through the whole motion (the "
+                                         "paper's parameter t, from t = ∞ back to ∞)")
             self.play = gui.add_checkbox("Play", initial_value=False,
                                          hint="animate the linkage through its cycle")
             self.speed = gui.add_slider("Speed", min=0.01, max=1.0, step=0.01,
                                         initial_value=0.1, hint="cycles per second")
-        with gui.add_folder("View", expand_by_default=False):
-            self.layers = {name: gui.add_checkbox(name, initial_value=True) for name in LAYERS}
-            self.thickness = gui.add_slider("Bar thickness", min=1.0, max=10.0, step=0.5,
-                                            initial_value=1.0, hint="x the true bar radius")
         self._connect()
 
     # --- handlers ---------------------------------------------------------------------------
@@ -220,17 +229,19 @@ class Panels:
         self.animation.on_click(handler(s.download_animation))
         self.load.on_upload(handler(s.upload_design))
         self.name.on_update(handler(lambda _: self._edit("name", name=self.name.value)))
+        self.rescale.on_click(handler(lambda _: self._rescale()))
         self.add_pose.on_click(handler(lambda _: self._add_pose()))
         self.remove_pose.on_click(handler(lambda _: self._remove_pose()))
-        self.method.on_update(handler(lambda _: self._motion(method=self.method.value)))
-        self.family.on_update(handler(lambda _: self._motion(family=int(self.family.value))))
+        self.method.on_update(handler(lambda _: self._motion(
+            method=value_of(METHOD_NAMES, self.method.value))))
+        self.family.on_update(handler(lambda _: self._motion(
+            family=FAMILY_NAMES.index(self.family.value))))
         self.mu.on_update(handler(lambda _: self._set_mu()))
         self.mu_inf.on_update(handler(lambda _: self._motion(
             mu=None if self.mu_inf.value else float(self.mu.value), criterion=None)))
-        self.best_mu.on_click(handler(lambda _: self._motion(criterion=self.criterion.value)))
+        self.best_mu.on_click(handler(lambda _: self._motion(
+            criterion=value_of(CRITERION_NAMES, self.criterion.value))))
         self.loop.on_update(handler(lambda _: self._edit(loop=loop_of_label(self.loop.value))))
-        for key, handle in self.real.items():
-            handle.on_update(handler(lambda _, key=key: self._realization(key)))
         self.u.on_update(handler(lambda _: self._set_u(self.u.value)))
         self.play.on_update(handler(lambda _: setattr(st, "playing", self.play.value)))
         self.speed.on_update(handler(lambda _: setattr(st, "speed", self.speed.value)))
@@ -261,32 +272,24 @@ class Panels:
         try:  # refuse settings the design file could not hold (they would break the autosave)
             evolution_settings(options)
         except (TypeError, ValueError) as exc:
-            self.studio.notify("Evolution", str(exc), error=True)
+            self.studio.notify("Fitting", str(exc), error=True)
             self.studio.request(FRAME, sync=True)
             return
         self.studio.state.edit(lambda d: dataclasses.replace(
             d, evolution={**d.evolution, key: value}), key)
         self.studio.request(FULL)
 
-    def _realization(self, key: str) -> None:
-        h = self.real[key]
-        if key == "fixed":
-            try:
-                value: Any = parse_fixed(h.value)
-            except ValueError as exc:
-                self.studio.notify("Fixed vertices", str(exc), error=True)
-                return
-        elif key in ("d", "rho"):
-            value = float(h.value) or None
-        else:
-            value = h.value
-        self.studio.state.edit(lambda d: dataclasses.replace(
-            d, realization=dataclasses.replace(d.realization, **{key: value})), key)
-        self.studio.request(FULL)
-
     def _add_pose(self) -> None:
-        self.studio.state.add_pose(self.studio.new_pose())
+        self.studio.state.add_pose(pose_in_gap(self.studio.state.design, self.studio.solution))
         self.studio.request(FULL, sync=True)
+
+    def _rescale(self) -> None:
+        """*Rescale*: the design in a unit that brings its size near 1 (one undo step)."""
+        factor = unit_factor(design_scale(self.studio.state.design))
+        self.studio.state.edit(lambda d: rescaled(d, factor))
+        self.studio.reframe()
+        self.studio.request(FULL, sync=True)
+        self.studio.notify("Design rescaled", f"every length x {factor:g}", cause="scale")
 
     def _remove_pose(self) -> None:
         if self.studio.state.remove_pose(int(self.pose_pick.value[1:])):
@@ -335,21 +338,21 @@ class Panels:
             for i, h in enumerate(self.locks):
                 h.value = i in design.locked
             m = design.motion
-            self.method.value, self.family.value = m.method, str(m.family)
+            self.method.value = METHOD_NAMES[m.method]
+            self.family.value = FAMILY_NAMES[m.family]
             self._show_mu(m.mu)
             if m.criterion is not None:
-                self.criterion.value = m.criterion
+                self.criterion.value = CRITERION_NAMES[m.criterion]
             self.loop.value = self.loop.options[design.loop]
             self.evolution.sync(design)
             self.effector.sync(design)
-            r = design.realization
-            for key, h in self.real.items():
-                if key == "fixed":
-                    h.value = ", ".join(f"{k}={v:g}" for k, v in sorted(r.fixed.items()))
-                elif key in ("d", "rho"):
-                    h.value = getattr(r, key) or 0.0
-                else:
-                    h.value = getattr(r, key)
+            self.realization.sync(design)
+
+    def show_status(self, text: str, detail: str | None = None) -> None:
+        """The status sentence and, if given, the Details text."""
+        self.status.content = f"**{text}**"
+        if detail is not None:
+            self.details.content = detail
 
     def show_solution(self, sol: Any) -> None:
         """Loop picker labels with singularity values/status, and the mu actually used."""
@@ -375,20 +378,4 @@ class Panels:
     def set_u(self, u: float) -> None:
         with writing_back():
             self.u.value = u
-
-
-def parse_fixed(text: str) -> dict[int, float]:
-    """``'0=0.1, 3=-0.2'`` -> ``{0: 0.1, 3: -0.2}``; raises ValueError on bad input."""
-    out: dict[int, float] = {}
-    for item in filter(None, (s.strip() for s in text.split(","))):
-        key, sep, val = item.partition("=")
-        if not sep or not key.strip().isdigit() or not 0 <= int(key) < 6:
-            raise ValueError(f"'{item}': expected vertex=offset with vertex 0..5")
-        try:
-            out[int(key)] = float(val)
-        except ValueError:
-            raise ValueError(f"'{item}': offset is not a number") from None
-        if not np.isfinite(out[int(key)]):
-            raise ValueError(f"'{item}': offset must be finite")
-    return out
 

@@ -82,23 +82,33 @@ class EffectorPanel:
                  guard: Callable[[Callable[[Any], None]], Callable[[Any], None]]) -> None:
         self.studio = studio
         self.mesh: str | None = None  # the mesh "Mesh" stands for (last used or uploaded)
-        with gui.add_folder("End-effector", expand_by_default=False):
-            self.body = gui.add_dropdown("Body", BODIES, initial_value="None",
-                                         hint="the body P moved by the end link")
+        with gui.add_folder("Carried object", expand_by_default=False):
+            self.body = gui.add_dropdown(
+                "Object", BODIES, initial_value="None",
+                hint="a body the end link carries, e.g. a shading panel (the paper's "
+                     "end-effector P, Sec. 5.1): it moves with the loop and the bars keep "
+                     "clear of it")
             self.inputs = {
-                "scale": gui.add_number("Scale", initial_value=1.0, min=1e-6, step=0.05,
-                                        hint="disc radius, panel height or mesh factor"),
-                "clearance": gui.add_number("Clearance (0 = rho)", initial_value=0.0, min=0.0,
-                                            step=0.005, hint="required distance from P to "
-                                            "every bar and pin centre line"),
-                "L": gui.add_text("L vertex", "", hint="vertex joined to S_3; blank = the "
-                                  "closest to A_2"),
-                "R": gui.add_text("R vertex", "", hint="vertex joined to E_3; blank = the "
-                                  "closest to A_3"),
+                "scale": gui.add_number("Object size", initial_value=1.0, min=1e-6, step=0.05,
+                                        hint="disc radius, panel height or mesh scale factor, "
+                                             "in design units"),
+                "clearance": gui.add_number(
+                    "Object clearance", initial_value=0.0, min=0.0, step=0.005,
+                    hint="the distance kept between the object and every bar and pin centre "
+                         "line, in design units; 0 = the bar radius (ρ)"),
+                "L": gui.add_text("Left attachment", "",
+                                  hint="the object's vertex joined to the end link's first "
+                                       "bar end (the paper's L, joined to S_3); blank = the "
+                                       "vertex closest to joint axis A_2"),
+                "R": gui.add_text("Right attachment", "",
+                                  hint="the object's vertex joined to the end link's second "
+                                       "bar end (the paper's R, joined to E_3); blank = the "
+                                       "vertex closest to joint axis A_3"),
             }
-            self.upload = gui.add_upload_button("Upload mesh", icon=viser.Icon.UPLOAD,
+            self.upload = gui.add_upload_button("Upload object mesh", icon=viser.Icon.UPLOAD,
                                                 mime_type=",".join(MESH_TYPES),
-                                                hint="STL, OBJ or GLB in design units")
+                                                hint="an STL, OBJ or GLB file in design units "
+                                                     "(up to 50 MiB)")
             self.file = gui.add_markdown("*No mesh file.*")
             self.report = gui.add_markdown("*No end-effector.*")
         self.body.on_update(guard(lambda _: self._edit(self.body.value)))
@@ -133,7 +143,7 @@ class EffectorPanel:
         try:
             settings = self._settings(body)
         except ValueError as exc:
-            studio.notify("End-effector", f"{exc} (the design is unchanged)", error=True)
+            studio.notify("Carried object", f"{exc} (the design is unchanged)", error=True)
             studio.request(FRAME, sync=True)
             return
         if settings is not None:

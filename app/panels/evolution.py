@@ -16,17 +16,26 @@ from paraloop_core.motion.evolution import evolution_settings
 
 #: (key, label, kind, default, hint); kind is 'int', 'float', 'bool' or a tuple of choices.
 FIELDS = (
-    ("init", "Initial guess", ("four-pose", "random"), "random",
-     "four-pose: interpolate four of the targets; random: spherical starts (eq. 9)"),
-    ("starts", "Starts", "int", 20, "number of starts (multi-start)"),
-    ("seed", "Seed", "int", 0, "seed of the random starts"),
-    ("w0", "Orientation weight w0", "float", 3.0, "initial-stage weight (>= 1)"),
-    ("q", "Weight reduction q", "float", 0.1, "fraction per middle-stage iteration"),
-    ("max_iterations", "Max iterations", "int", 100, "cap per start"),
-    ("ordered", "Ordered targets", "bool", True, "visit the targets in the given order"),
-    ("free_reference", "Free reference frame", "bool", False,
-     "final stage: S_0 no longer hit exactly, fairer to all targets"),
-    ("loop_fix", "Loop fix", "bool", False, "modified procedure against loops (Fig. 17)"),
+    ("init", "Start from", ("four-pose", "random"), "random",
+     "how each attempt starts: four-pose interpolates four of the targets, random draws "
+     "spherical starts (the paper's initial guess, eq. 9)"),
+    ("starts", "Attempts", "int", 20, "how many starts are tried; the best fit wins "
+     "(multi-start)"),
+    ("seed", "Random seed", "int", 0, "the seed of the random starts (the same seed gives the "
+     "same fit)"),
+    ("w0", "Orientation weight", "float", 3.0, "how much the targets' orientations count "
+     "against their positions at first, at least 1 (the paper's w0, Sec. 4.3)"),
+    ("q", "Weight easing", "float", 0.1, "how fast the orientation weight is eased off per "
+     "middle-stage step, a fraction (the paper's q, Sec. 4.3)"),
+    ("max_iterations", "Max steps per attempt", "int", 100, "the most fitting steps one "
+     "attempt may take"),
+    ("ordered", "Visit poses in order", "bool", True, "the motion visits the targets in their "
+     "order S0, S1, ..."),
+    ("free_reference", "Treat all poses alike", "bool", False,
+     "in the final stage S0 is no longer hit exactly, which is fairer to the other targets "
+     "(the paper's free reference frame)"),
+    ("loop_fix", "Avoid loops in the path", "bool", False, "the modified procedure against "
+     "loops in the motion's path (the paper's loop fix, Fig. 17)"),
 )
 
 
@@ -36,7 +45,7 @@ class EvolutionPanel:
     def __init__(self, gui: viser.GuiApi, edit: Callable[[str, Any], None],
                  guard: Callable[[Callable[[Any], None]], Callable[[Any], None]]) -> None:
         self.handles: dict[str, Any] = {}
-        with gui.add_folder("Evolution (method fit)", expand_by_default=False):
+        with gui.add_folder("Fitting (motion fitted to all poses)", expand_by_default=False):
             for key, label, kind, default, hint in FIELDS:
                 if isinstance(kind, tuple):
                     h = gui.add_dropdown(label, kind, initial_value=default, hint=hint)
@@ -48,7 +57,8 @@ class EvolutionPanel:
                 h.on_update(guard(lambda _, key=key, kind=kind, h=h: edit(
                     key, int(h.value) if kind == "int" else h.value)))
                 self.handles[key] = h
-            self.report = gui.add_markdown("Fit: none yet (choose method 'fit' with >= 5 poses).")
+            self.report = gui.add_markdown("Fit: none yet (choose Motion from: Fitted to all "
+                                           "poses, with five or more poses).")
 
     def sync(self, design: Design) -> None:
         """Show the design's settings (defaults where the design says nothing)."""

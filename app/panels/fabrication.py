@@ -21,6 +21,7 @@ from app.jobs import Cancelled
 from app.panels.design import handler, writing_back
 from app.scene import SPACES_LAYER
 from app.state import FabSettings
+from app.wording import gui_text
 from app.worker import FRAME
 from paraloop_core.errors import FabricationError
 from paraloop_core.fabrication import drive_mass
@@ -35,8 +36,15 @@ BOUND_HELP = ("Voxel carving is approximate; the bound makes it safe: every swee
               "spaces are therefore disjoint for the **continuous** motion.")
 
 
+#: The *Column on link* entries: the best link (None) or link 0..5.
+COLUMN_LINKS = ("best", *(f"link {i}" for i in range(6)))
+
+
 def check_setting(key: str, value: Any) -> Any:
-    """The validated value of setting ``key``; raises ValueError with a readable reason."""
+    """The validated value of setting ``key`` (a widget's value); raises ValueError with a
+    readable reason."""
+    if key == "ground_link":
+        return None if value == COLUMN_LINKS[0] else COLUMN_LINKS.index(value) - 1
     if key in ("size_mm", "clearance_mm", "space_radius_mm"):
         value = float(value)
         if not math.isfinite(value):
@@ -84,8 +92,12 @@ class FabricationPanel:
                     hint="print the loop assembled (captive pins) instead of as parts"),
                 "ground": gui.add_checkbox(
                     "Grounding column", fab.ground,
-                    hint="a column under the base link so the loop stands on a table "
+                    hint="a column under one link so the loop stands on a table "
                          "(Sec. 5.3, loop grounding)"),
+                "ground_link": gui.add_dropdown(
+                    "Column on link", COLUMN_LINKS, initial_value=COLUMN_LINKS[0],
+                    hint="the link that carries the grounding column and rests on the table; "
+                         "best = the one whose column clears the moving links best"),
                 "space_radius_mm": gui.add_number(
                     "Space radius (mm)", initial_value=fab.space_radius_mm, step=1.0,
                     hint="design-space radius; 0 = the realization's (median), base link x2"),
@@ -114,14 +126,12 @@ class FabricationPanel:
                      "runs in the background")
             self.progress = gui.add_progress_bar(0.0, visible=False)
             self.progress_text = gui.add_markdown("")
-            self.show = gui.add_checkbox("Show design spaces", initial_value=True)
             self.bound = gui.add_markdown("*Design spaces: not carved yet.*")
             self.verification = gui.add_markdown("*Verification: not exported yet.*")
         for key, handle in self.inputs.items():
             handle.on_update(handler(lambda _, key=key: self._set(key)))
         self.carve.on_click(handler(lambda e: self._task("carve", e)))
         self.export.on_click(handler(lambda e: self._task("export", e)))
-        self.show.on_update(handler(lambda _: self._show(self.show.value)))
 
     # --- handlers (edit the state only) -----------------------------------------------------
     def _set(self, key: str) -> None:
@@ -139,17 +149,14 @@ class FabricationPanel:
         self.studio.state.add_task(name, event.client)
         self.studio.request(FRAME)
 
-    def _show(self, show: bool) -> None:
-        hidden = self.studio.state.hidden
-        (hidden.discard if show else hidden.add)(SPACES_LAYER)
-        self.studio.request(FRAME)
-
     # --- worker side ------------------------------------------------------------------------
     def sync(self, fab: FabSettings) -> None:
         """Show ``fab`` in the widgets (no handler fires)."""
         with writing_back():
             for key, handle in self.inputs.items():
-                handle.value = getattr(fab, key)
+                value = getattr(fab, key)
+                handle.value = COLUMN_LINKS[0 if value is None else value + 1] \
+                    if key == "ground_link" else value
 
     def mark_stale(self, sol: Any) -> None:
         """Mark the carving and export texts stale when ``sol``'s realization is not the one
@@ -189,7 +196,7 @@ class FabricationPanel:
             self.progress_text.content = f"{title} cancelled ({why})."
         except (FabricationError, ValueError) as exc:
             studio.notify(f"{title} failed", f"{exc} (the design is unchanged)", error=True)
-            self.progress_text.content = f"{title} failed: {exc}"
+            self.progress_text.content = gui_text(f"{title} failed: {exc}")
         finally:
             self.progress.visible = False
 
@@ -212,6 +219,7 @@ class FabricationPanel:
         studio, st = self.studio, self.studio.state
         with self.server.atomic():
             studio.scene.set_spaces(real.joint_factors, bodies)
+            studio.show_layer(SPACES_LAYER)  # carved to be seen (Construction folder)
             studio.scene.draw_frame(st.u, st.thickness)
             studio.scene.apply_layers(st.hidden)
         self.carving = cv.report

@@ -64,6 +64,8 @@ class Options:
     rod: Rod = profiles.DEFAULT_ROD
     size_mm: float | None = None
     ground: bool = True
+    #: the link the grounding rod holds (None: the program chooses)
+    ground_link: int | None = None
     samples: int = 720
 
 
@@ -241,6 +243,13 @@ def _ground(asm: Assembly, opts: Options) -> tuple[Assembly, base.Base | None, l
             warnings.append(f"the grounding rod keeps {ranked[0].clearance_mm:.1f} mm from "
                             "the moving links: more than the least gap, less than three times "
                             "their predicted deflection")
+    if opts.ground_link is not None and ranked:
+        mine = [b for b in ranked if b.link == opts.ground_link]
+        if not mine:
+            warnings.append(f"no grounding rod on link {opts.ground_link} clears the moving "
+                            f"links over the whole cycle: the rod holds link "
+                            f"{ranked[0].link} instead")
+        ranked = mine or ranked
     # best first: both links flat with the rod's cap, the cap on support, flat without the
     # cap (the closed loop holds the joint), neither
     found: dict[tuple[bool, bool], tuple] = {}
