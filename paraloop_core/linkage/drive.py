@@ -177,7 +177,9 @@ def motor_angles(a: np.ndarray, b: np.ndarray, m: int, n: int) -> np.ndarray:
                         a[m] + _ratio_critical(a, b)[m].ravel(), _accel_critical(a, b, m)])
     th = np.mod(2.0 * np.arctan2(b[m], a[m] - t), TWO_PI)  # t = +-inf -> 0 (home)
     th = np.unique(np.concatenate([np.arange(n) * (TWO_PI / n), th[np.isfinite(th)]]))
-    return th[np.concatenate([[True], np.diff(th) > 1e-12])]  # near-duplicates add nothing
+    # near-duplicates add nothing (2 pi is home again); a step of 1e-12 rad would only turn
+    # the rounding of the schedule's x into its acceleration (the slope of x over the step)
+    return th[np.concatenate([[True], np.diff(th) > 1e-12]) & (TWO_PI - th > 1e-12)]
 
 
 def constant_speed(jf: np.ndarray, motor: int, cycle_time: float, samples: int = SAMPLES,
