@@ -116,32 +116,39 @@ def joint_rates(jf: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def gear(a: np.ndarray, b: np.ndarray, m: int, theta: np.ndarray) -> tuple[np.ndarray, ...]:
-    """``t`` ``(T,)``, ``g``, ``g'`` ``(T, 6)`` of motor m at motor angles ``theta`` ``(T,)``.
+    """``t`` ``(T,)``, ``g``, ``g'`` ``(T, 6)`` of motor m at motor angles ``theta`` ``(T,)``
+    (views of :func:`gear_rows`)."""
+    t, g, gp = gear_rows(a, b, m, theta)
+    return t, g.T, gp.T
+
+
+def gear_rows(a: np.ndarray, b: np.ndarray, m: int, theta: np.ndarray
+              ) -> tuple[np.ndarray, ...]:
+    """``t`` ``(T,)``, ``g``, ``g'`` ``(6, T)`` (joints first: long inner loops).
 
     With ``s = t - a_m = -b_m cot(theta/2)`` and ``h_j^2 = (s - a_j + a_m)^2 + b_j^2``:
     ``g_j = sign_j b_j h_m^2 / (b_m h_j^2)`` (``loops.JOINT_SIGN``). All of it is scaled by
     ``h_m = b_m / |sin(theta/2)|`` (``c = s / h_m``, ``e = b_m / h_m`` in [-1, 1]): no
     overflow, no square root, home (theta = 0, t = -inf) included."""
-    half = 0.5 * theta
+    half = 0.5 * np.asarray(theta, dtype=np.float64)
     sn, cs = np.sin(half), np.cos(half)
     with np.errstate(divide="ignore"):  # theta = 0: home, t = -inf
         t = np.where(sn == 0.0, -np.inf, a[m] - b[m] * cs / sn)
-    e = np.abs(sn)[:, None]
-    c = (-cs * np.copysign(1.0, sn))[:, None]
+    e = np.abs(sn)
+    c = -cs * np.copysign(1.0, sn)
     ih = e / b[m]  # 1 / h_m
-    delta = a - a[m]
+    delta, bm = (a - a[m])[:, None], b[:, None]
     u = c - delta * ih
-    bi = b * ih
+    bi = bm * ih
     u *= u
     bi *= bi
     u += bi
     rho = np.divide(1.0, u, out=u)  # D_m / D_j = h_m^2 / h_j^2
     # N_j / D_j = (delta (c^2 - e^2) + (b_m^2 - b_j^2 - delta^2) c / h_m) rho
     nd = delta * (c * c - e * e)
-    nd += (b[m] ** 2 - b**2 - delta**2) * (c * ih)
+    nd += (b[m] ** 2 - bm**2 - delta**2) * (c * ih)
     nd *= rho
-    k = loops.JOINT_SIGN * (b / b[m])
-    g = k * rho
+    g = (loops.JOINT_SIGN * (b / b[m]))[:, None] * rho
     nd *= g
     nd *= -1.0 / b[m]
     return t, g, nd

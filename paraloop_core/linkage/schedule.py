@@ -302,7 +302,8 @@ def _dense_accel(a: np.ndarray, b: np.ndarray, m: int, gr: Grid, x: np.ndarray) 
              + np.maximum(ag[:-1], ag[1:]) * np.abs(slope))
     steps = np.flatnonzero((bound > best * (1.0 - 1e-9)).any(axis=1))
     lam = np.linspace(0.0, 1.0, DENSE)
-    _, gd, gpd = drive.gear(a, b, m, (nodes[steps, None] + delta[steps, None] * lam).ravel())
-    xs = (x[steps, None] * (1.0 - lam) + x[steps + 1, None] * lam).ravel()[:, None]
-    dense = np.abs(gpd * xs + gd * np.repeat(slope[steps], DENSE, axis=0))
-    return np.maximum(best, dense.max(axis=0, initial=0.0))
+    _, gd, gpd = drive.gear_rows(a, b, m, (nodes[steps, None] + delta[steps, None] * lam).ravel())
+    gpd *= (x[steps, None] * (1.0 - lam) + x[steps + 1, None] * lam).ravel()
+    gd *= np.repeat(slope[steps, 0], DENSE)
+    gpd += gd
+    return np.maximum(best, np.abs(gpd).max(axis=1, initial=0.0))
