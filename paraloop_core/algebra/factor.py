@@ -300,10 +300,25 @@ def refine_cubic_factors(h: np.ndarray, c_monic: np.ndarray, steps: int = 2) -> 
                                -poly.mul(poly.mul(l0, _UNIT), l2),
                                -poly.mul(poly.mul(l0, l1), _UNIT)], axis=-3)  # (..., 21, 3, 8)
         jac = np.swapaxes(cols.reshape(*cols.shape[:-2], 24), -1, -2)  # (..., 24, 21)
-        step = np.linalg.pinv(jac) @ r[..., :3, :].reshape(*r.shape[:-2], 24)[..., None]
+        step = _least_squares(jac, r[..., :3, :].reshape(*r.shape[:-2], 24)[..., None])
         h[..., _FREE] += step[..., 0].reshape(*h.shape[:-2], 3, 7)
         h = clean_factor(h)
     return h
+
+
+def _least_squares(jac: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """Least-squares solutions ``(..., n, 1)`` of ``jac`` ``(..., m, n)`` (m >= n) ``x = rhs``
+    ``(..., m, 1)``: by QR (a quarter of an SVD's time) where the columns are independent to
+    1e-10, else by the pseudo-inverse (what near-rank-deficient items need)."""
+    q, r = np.linalg.qr(jac)
+    diag = np.abs(np.diagonal(r, axis1=-2, axis2=-1))
+    full = diag.min(axis=-1) > 1e-10 * diag.max(axis=-1)
+    out = np.empty(jac.shape[:-2] + (jac.shape[-1], 1))
+    if full.any():
+        out[full] = np.linalg.solve(r[full], np.swapaxes(q[full], -1, -2) @ rhs[full])
+    if not full.all():
+        out[~full] = np.linalg.pinv(jac[~full]) @ rhs[~full]
+    return out
 
 
 def hss_batch(c_monic: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
