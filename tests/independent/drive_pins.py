@@ -1,7 +1,8 @@
 """Pinned drive-plan values (``tests/data/drive_pins.json``): the numbers of the scalar TOPP
-implementation (Python loops over the grid, commit a381d0a), which the array version must
-reproduce to 1e-9 relative. Regenerate only on purpose: ``.venv/bin/python -m
-tests.independent.drive_pins`` (it overwrites the file with the current code's numbers).
+implementation (Python loops over the grid, commit a381d0a, with the BLAS-independent
+critical-point finder of ``drive._accel_critical`` and the 2 pi duplicate dropped), which the
+array version must reproduce to 1e-9 relative. Regenerate only on purpose: ``.venv/bin/python
+-m tests.independent.drive_pins`` (it overwrites the file with the current code's numbers).
 """
 
 from __future__ import annotations
