@@ -21,8 +21,11 @@ def _t_json(t: float) -> float | None:
     return None if np.isinf(t) else float(t)
 
 
-def result_to_dict(sol: Any) -> dict[str, Any]:
-    """The result JSON (see ``docs/result-format.md``)."""
+def result_to_dict(sol: Any, drive: bool | None = None) -> dict[str, Any]:
+    """The result JSON (see ``docs/result-format.md``). ``drive``: include the drive plan of
+    the chosen loop (True), leave it out (False), or include it when the design asks for one,
+    i.e. its ``drive`` settings are not the defaults (None). The plan costs a few ms, about
+    twice the rest of a solve, so results of designs that never mention a drive skip it."""
     facts = sol.factorizations
     labels = "ABC"
     out: dict[str, Any] = {
@@ -76,19 +79,27 @@ def result_to_dict(sol: Any) -> dict[str, Any]:
         from paraloop_core.realization import ee_certificate
 
         out["end_effector"] = ee_certificate.ee_to_dict(sol.end_effector)
-    from paraloop_core.linkage import drive_plan
+    if drive or (drive is None and _asks_for_drive(sol.design.drive)):
+        from paraloop_core.linkage import drive_plan
 
-    try:  # the chosen loop in design units, base link resting; never fails a solve
-        out["drive"] = drive_plan.plan_to_dict(drive_plan.plan_drive(
-            sol.loop.joint_factors, sol.design.drive, resting_link=0))
-    except (ValueError, RuntimeError) as exc:  # RuntimeError: a limit check failed (a bug)
-        out["drive"] = {"error": str(exc)}
+        try:  # the chosen loop in design units, base link resting; never fails a solve
+            out["drive"] = drive_plan.plan_to_dict(drive_plan.plan_drive(
+                sol.loop.joint_factors, sol.design.drive, resting_link=0))
+        except (ValueError, RuntimeError) as exc:  # RuntimeError: a limit check failed (a bug)
+            out["drive"] = {"error": str(exc)}
     return out
 
 
-def save_result(sol: Any, path: str | Path) -> None:
-    """Write the result JSON of ``sol`` to ``path`` atomically (strict JSON: no NaN/Infinity)."""
-    write_json_atomic(Path(path), result_to_dict(sol))
+def _asks_for_drive(settings: Any) -> bool:
+    """Whether drive settings differ from the defaults (``design.DriveSettings()``; compared
+    field by field: design is above this module)."""
+    return type(settings)() != settings
+
+
+def save_result(sol: Any, path: str | Path, drive: bool | None = None) -> None:
+    """Write the result JSON of ``sol`` (``drive`` as :func:`result_to_dict`) to ``path``
+    atomically (strict JSON: no NaN/Infinity)."""
+    write_json_atomic(Path(path), result_to_dict(sol, drive))
 
 
 def write_json_atomic(path: Path, data: dict[str, Any]) -> None:
