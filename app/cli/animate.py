@@ -35,7 +35,7 @@ def check_out(out: Path, design: Path, force: bool) -> None:
 
 def cmd_animate(args: argparse.Namespace) -> int:
     path = Path(args.design)
-    out = Path(args.out)
+    out = outputs.output_path(args.out, "--out")
     check_out(out, path, args.force)
     def work(design: Design, sol: pipeline.Solution) -> tuple[bytes, float, str]:
         real = sol.realization

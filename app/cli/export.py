@@ -62,14 +62,14 @@ def solve_realized(path: Path, work: Callable[[Design, pipeline.Solution], T]
     except RealizationError as exc:
         print(f"error: {path}: {outputs.one_line(exc)}", file=sys.stderr)
         return (EXIT_REFUSED if exc.reason == "bad-parameters" else EXIT_NOT_REALIZED), None
-    except ValueError as exc:  # ParaloopError and any other bad-input ValueError
-        print(f"error: {path}: {outputs.one_line(exc)}", file=sys.stderr)
+    except (ValueError, OSError) as exc:  # ParaloopError, any other bad-input ValueError, a
+        print(f"error: {path}: {outputs.one_line(exc)}", file=sys.stderr)  # mesh unreadable
         return EXIT_REFUSED, None
 
 
 def cmd_export(args: argparse.Namespace) -> int:
     path = Path(args.design)
-    out = Path(args.out)
+    out = outputs.output_path(args.out, "--out")
     check_out(out, args.force)
     try:
         if args.rhino:
@@ -88,7 +88,11 @@ def cmd_export(args: argparse.Namespace) -> int:
         progress=None if args.quiet else _print_progress))
     if result is None:
         return code
-    outputs.write_files(out, result.files)
+    try:
+        outputs.write_files(out, result.files)
+    except OSError as exc:  # checked before the work; a disk filled up since
+        print(f"error: {out}: cannot write ({outputs.one_line(exc)})", file=sys.stderr)
+        return EXIT_REFUSED
     ver, sz = result.report["verification"], result.report["sizing"]
     for warning in result.report["warnings"]:
         print(f"warning: {path}: {outputs.one_line(warning)}", file=sys.stderr)
