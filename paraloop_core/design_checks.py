@@ -21,8 +21,9 @@ from paraloop_core.errors import DesignFileError, shown
 MAX_FILE_BYTES = 5 * 2**20
 #: deepest nesting of JSON arrays/objects (a valid design needs 4)
 MAX_DEPTH = 16
-#: longest number literal accepted by the parser (characters; Python's json writes <= 24)
-MAX_NUMBER_CHARS = 100
+#: longest number literal accepted by the parser (characters; Python's json writes <= 24,
+#: and int() of a longer one costs time); a 400-digit number then reaches its field's check
+MAX_NUMBER_CHARS = 1000
 #: number of poses (``poses``), and at most this many ``motion.extra_poses``
 MIN_POSES, MAX_POSES = 4, 1000
 #: largest magnitude of any length or other number (design units: positions up to 1e12 keep

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import asyncio
 import dataclasses
+import hashlib
 import json
 import os
 import time
@@ -331,7 +332,9 @@ def test_save_export_and_upload(studio, tmp_path):
     assert studio.state.design.name == "uploaded" and studio.panels.name.value == "uploaded"
     # its own autosave: the opened file's unsaved work is not overwritten
     assert studio.state.autosave_path != opened
-    assert studio.state.autosave_path.name == "upload-good.json"
+    # keyed by content: another upload named good.json gets another autosave
+    key = hashlib.sha256(json.dumps(d).encode()).hexdigest()[:12]
+    assert studio.state.autosave_path.name == f"upload-good-{key}.json"
     assert np.allclose(studio.scene.gizmos[3].position, [0.7, 0.5, 0.8])
     assert studio.error is None and studio.solution.design.name == "uploaded"
 
