@@ -18,7 +18,7 @@ import numpy as np
 
 from paraloop_core import design_checks as chk
 from paraloop_core.design_checks import MAX_LENGTH
-from paraloop_core.errors import DesignFileError, shown
+from paraloop_core.errors import DesignFileError, shown, shown_key
 from paraloop_core.tolerance import TOL
 
 FORMAT = "paraloop-design"
@@ -220,7 +220,7 @@ def _realization(v: Any, extent: float) -> RealizationSettings:
     fixed = {}
     for k, s in fixed_raw.items():
         if k not in ("0", "1", "2", "3", "4", "5"):
-            raise DesignFileError(f"realization.fixed.{chk.key(k)}",
+            raise DesignFileError(f"realization.fixed.{shown_key(k)}",
                                   "keys must be vertex indices \"0\"..\"5\"")
         fixed[int(k)] = chk.number(s, f"realization.fixed.{k}")
     return RealizationSettings(

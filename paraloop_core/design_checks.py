@@ -15,7 +15,7 @@ import stat
 from pathlib import Path
 from typing import Any
 
-from paraloop_core.errors import DesignFileError, shown
+from paraloop_core.errors import DesignFileError, shown, shown_key
 
 #: largest design file or upload (bytes), checked before reading or parsing
 MAX_FILE_BYTES = 5 * 2**20
@@ -50,13 +50,6 @@ MAX_ACCEL = 1e9
 DENSITY_RANGE = (1.0, 1e5)
 #: the meshes shipped with paraloop (``assets/meshes``), found by file name from any design
 BUNDLED_MESHES = Path(__file__).resolve().parent.parent / "assets" / "meshes"
-
-def key(k: Any) -> str:
-    """A JSON object key for a field path (bounded, ASCII, no quotes)."""
-    if not isinstance(k, str):
-        return shown(k)
-    return json.dumps(k[:40])[1:-1] + ("..." if len(k) > 40 else "")
-
 
 def _g(x: float) -> str:
     return f"{x:g}"
@@ -114,7 +107,8 @@ def check_keys(d: dict, allowed: set[str], path: str) -> None:
     """Refuse the first unknown key, naming it and the allowed ones."""
     extra = sorted((k for k in d if k not in allowed), key=str)
     if extra:
-        raise DesignFileError(f"{path}.{key(extra[0])}", f"unknown key {shown(extra[0])} at {path} "
+        raise DesignFileError(f"{path}.{shown_key(extra[0])}", f"unknown key {shown(extra[0])} "
+                              f"at {path} "
                               f"(allowed: {', '.join(sorted(allowed))})")
 
 

@@ -28,9 +28,8 @@ def shown(v: Any, depth: int = 2) -> str:
     if isinstance(v, numbers.Real):
         return json.dumps(float(v))
     if isinstance(v, str):
-        if len(v) <= _QUOTE_CHARS:
-            return json.dumps(v)
-        return f"{json.dumps(v[:_QUOTE_CHARS])[:-1]}...\" ({len(v)} characters)"
+        text, whole = _escaped(v)
+        return f'"{text}"' if whole else f'"{text}..." ({len(v)} characters)'
     if isinstance(v, (list, tuple, dict)):
         if depth <= 0 or not v:
             return ("[]" if isinstance(v, (list, tuple)) else "{}") if not v else (
@@ -44,6 +43,27 @@ def shown(v: Any, depth: int = 2) -> str:
         ends = "{}" if isinstance(v, dict) else "[]"
         return f"{ends[0]}{', '.join(parts)}{more}{ends[1]}"
     return f"<{type(v).__name__}>"
+
+
+def shown_key(k: Any) -> str:
+    """An object key as a field path shows it: bounded, ASCII, no quotes."""
+    if not isinstance(k, str):
+        return shown(k)
+    text, whole = _escaped(k)
+    return text if whole else text + "..."
+
+
+def _escaped(text: str) -> tuple[str, bool]:
+    """``text`` JSON-escaped (ASCII) up to :data:`_QUOTE_CHARS` output characters; whether
+    all of it fitted."""
+    out, used = [], 0
+    for ch in text[:_QUOTE_CHARS]:
+        piece = json.dumps(ch)[1:-1]
+        used += len(piece)
+        if used > _QUOTE_CHARS:
+            return "".join(out), False
+        out.append(piece)
+    return "".join(out), len(text) <= _QUOTE_CHARS
 
 
 class ParaloopError(ValueError):

@@ -60,10 +60,12 @@ def solve_realized(path: Path, work: Callable[[Design, pipeline.Solution], T]
             return EXIT_NOT_REALIZED, None
         return EXIT_OK, work(design, sol)
     except RealizationError as exc:
+        outputs.check_interrupt()
         print(f"error: {path}: {outputs.one_line(exc)}", file=sys.stderr)
         return (EXIT_REFUSED if exc.reason == "bad-parameters" else EXIT_NOT_REALIZED), None
     except (ValueError, OSError) as exc:  # ParaloopError, any other bad-input ValueError, a
-        print(f"error: {path}: {outputs.one_line(exc)}", file=sys.stderr)  # mesh unreadable
+        outputs.check_interrupt()  # mesh unreadable; after Ctrl-C: the interrupt's
+        print(f"error: {path}: {outputs.one_line(exc)}", file=sys.stderr)
         return EXIT_REFUSED, None
 
 

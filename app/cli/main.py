@@ -20,6 +20,7 @@ import importlib
 import sys
 from types import ModuleType
 
+from app import cli
 from app.cli import outputs
 from app.cli.outputs import EXIT_INTERRUPTED, EXIT_REFUSED
 
@@ -109,6 +110,7 @@ def _run(argv: list[str]) -> int:
     try:
         return int(args.func(args) or 0)
     except (ValueError, OSError) as exc:  # bad input or unusable output: one line
+        outputs.check_interrupt()
         print(f"error: {outputs.one_line(exc)}", file=sys.stderr)
         return EXIT_REFUSED
     except Exception as exc:
@@ -121,13 +123,16 @@ def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     outputs.catch_interrupts()
     try:
-        return _run(argv)
-    except KeyboardInterrupt as exc:
+        try:
+            if cli.EARLY_INTERRUPTS:  # pressed while this module was loading
+                raise KeyboardInterrupt
+            return _run(argv)
+        except Exception as exc:  # e.g. a sub-command's module failing to import
+            return outputs.internal_error("", exc, "--debug" in argv)
+    except KeyboardInterrupt as exc:  # also raised by the handlers above after a Ctrl-C
         outputs.seen(exc)
         print("error: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
-    except Exception as exc:
-        return outputs.internal_error("", exc, "--debug" in argv)
     finally:
         outputs.restore_interrupts()
 

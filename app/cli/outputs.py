@@ -242,13 +242,13 @@ class _Interrupts:
     vanish. Further SIGINTs are ignored while one is pending (the repeats carry it)."""
 
     def __init__(self) -> None:
-        self.pending = False
+        self.pending = self.repeating = False
         self.saved: list[tuple[int, Any]] = []
 
     def install(self) -> None:
         if threading.current_thread() is not threading.main_thread():
             return  # signals are the main thread's
-        self.pending = False
+        self.pending = self.repeating = False
         for sig in (signal.SIGINT, getattr(signal, "SIGALRM", None)):
             if sig is not None:
                 self.saved.append((sig, signal.signal(sig, self._handle)))
@@ -257,16 +257,17 @@ class _Interrupts:
         if signum == signal.SIGINT:
             if self.pending:
                 return
-            self.pending = True
+            self.pending = self.repeating = True
             if hasattr(signal, "setitimer"):
                 signal.setitimer(signal.ITIMER_REAL, INTERRUPT_REPEAT, INTERRUPT_REPEAT)
-        elif not self.pending:
+        elif not self.repeating:  # an alarm already on its way when the repeats stopped
             return
         raise KeyboardInterrupt
 
     def seen(self) -> None:
-        if self.pending and hasattr(signal, "setitimer"):
+        if self.repeating and hasattr(signal, "setitimer"):
             signal.setitimer(signal.ITIMER_REAL, 0.0)
+        self.repeating = False
 
     def restore(self) -> None:
         self.seen()
@@ -278,6 +279,13 @@ _INTERRUPTS = _Interrupts()
 catch_interrupts, restore_interrupts = _INTERRUPTS.install, _INTERRUPTS.restore
 
 
+def check_interrupt() -> None:
+    """Raise KeyboardInterrupt when a Ctrl-C is pending: an error seen after one (a library
+    that swallowed it left a module half imported) is its consequence, not a bug or bad input."""
+    if _INTERRUPTS.pending:
+        raise KeyboardInterrupt
+
+
 def seen(exc: BaseException | None) -> None:
     """Called by code unwinding for ``exc``: when it is a Ctrl-C, the interrupt is
     propagating, so it is not repeated (a clean-up that takes time, e.g. closing a Dask
@@ -287,7 +295,9 @@ def seen(exc: BaseException | None) -> None:
 
 
 def internal_error(where: str, exc: BaseException, debug: bool) -> int:
-    """One line for an unexpected exception (a bug); the traceback only with ``--debug``."""
+    """One line for an unexpected exception (a bug); the traceback only with ``--debug``
+    (after a Ctrl-C: KeyboardInterrupt, see :func:`check_interrupt`)."""
+    check_interrupt()
     print(f"error: {where}internal error ({type(exc).__name__}: {one_line(exc, 200)}); "
           f"{REPORT} (rerun with --debug for the traceback)", file=sys.stderr)
     if debug:

@@ -55,9 +55,11 @@ def _solve_one(path: Path, target: Path, solved: batch.Outcome, out_dir: Path | 
     try:
         result = solved.get()
     except RealizationError as exc:
+        outputs.check_interrupt()
         print(f"error: {path}: {outputs.one_line(exc)}", file=sys.stderr)
         return EXIT_REFUSED if exc.reason == "bad-parameters" else EXIT_NOT_REALIZED
     except (ValueError, OSError) as exc:  # ParaloopError: a refused file or degenerate design
+        outputs.check_interrupt()  # a failure after Ctrl-C is the interrupt's
         print(f"error: {path}: {outputs.one_line(exc)}", file=sys.stderr)
         return EXIT_REFUSED
     real = result.get("realization", {})

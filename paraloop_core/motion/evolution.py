@@ -318,7 +318,7 @@ def evolution_settings(options: dict) -> EvolutionSettings:
     ValueError) names the field (``field``) and the accepted range. The iteration budget
     ``starts * max_iterations`` is capped at 100000 (the time cap of a fit: about 10 ms per
     iteration with 8 poses, so at most about 15 minutes)."""
-    from paraloop_core.errors import DesignFileError, shown
+    from paraloop_core.errors import DesignFileError, shown, shown_key
 
     numbers = {"w0": (1.0, 1e6, False), "q": (0.0, 1.0, True), "tol": (1e-15, 1.0, False),
                "loop_ratio": (1.0, 1e6, True), "smooth_drive": (0.0, 1e6, False)}
@@ -330,8 +330,8 @@ def evolution_settings(options: dict) -> EvolutionSettings:
         raise DesignFileError("evolution", "must be an object")
     unknown = sorted((k for k in options if k not in allowed), key=str)
     if unknown:
-        raise DesignFileError(shown(str(unknown[0])[:40])[1:-1], f"unknown key "
-                              f"{shown(unknown[0])} at evolution "
+        raise DesignFileError(shown_key(unknown[0]), f"unknown key {shown(unknown[0])} at "
+                              "evolution "
                               f"(allowed: {', '.join(sorted(allowed))})")
 
     opts = dict(options)
