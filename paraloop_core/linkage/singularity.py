@@ -55,7 +55,8 @@ def _check_factors(joint_factors: np.ndarray, length: float) -> np.ndarray:
         raise ValueError("joint_factors must be finite")
     pn = np.sqrt((jf[..., 1:4] ** 2).sum(axis=-1))
     if (pn <= TOL.zero * (1.0 + np.abs(jf).max(axis=-1))).any():
-        raise ValueError("a joint factor has no rotation axis (zero vector part)")
+        raise NonGenericMotionError("non-generic motion: a joint factor has no rotation axis "
+                                    "(zero vector part)", "translational-factor")
     ratio = float((pn / np.sqrt((jf[..., :4] ** 2).sum(axis=-1))).min())
     if not ratio > TOL.resolved:  # S would divide by a norm that is rounding noise
         raise NonGenericMotionError(
