@@ -137,7 +137,7 @@ class StudioState:
 
     def __init__(self, design: Design, autosave_path: Path | None = None) -> None:
         self._lock = threading.RLock()
-        self.design = design = with_uploads(design)
+        self.design = design
         self.committed = design
         self.undo_stack: list[Design] = []
         self.redo_stack: list[Design] = []
@@ -158,14 +158,14 @@ class StudioState:
     def preview(self, design: Design) -> None:
         """Show ``design`` now; the edit becomes undoable at the next :meth:`commit`."""
         with self._lock:
-            self.design = with_uploads(design)
+            self.design = design
             self.version += 1
 
     def commit(self, design: Design | None = None, merge: str | None = None) -> None:
         """Record ``design`` (default: the previewed one) as one undoable edit; edits with the
         same ``merge`` key within ``MERGE_SECONDS`` (a slider being dragged) become one."""
         with self._lock:
-            design = self.design if design is None else with_uploads(design)
+            design = self.design if design is None else design
             now = time.monotonic()
             merged = (merge is not None and merge == self._merge_key
                       and now - self._merge_time < MERGE_SECONDS and bool(self.undo_stack))

@@ -35,7 +35,7 @@ from app.plots import Plots
 from app.restore import RestoreOffer, offer_restore
 from app.scene import SceneView, design_scale
 from app.solver import Solver, incomplete
-from app.state import StudioState, autosave_path_for, rescaled
+from app.state import StudioState, autosave_path_for, rescaled, uploaded_meshes_dir
 from app.status import scale_warning, status_line, unit_factor
 from app.worker import FRAME, FULL, PREVIEW, REFINE, NewestWorker
 from paraloop_core import design as design_mod
@@ -364,7 +364,7 @@ def run_studio(design_path: str | Path | None, host: str = "127.0.0.1", port: in
     """Serve the studio until SIGINT/SIGTERM; prints the URL."""
     opened = Path(design_path) if design_path is not None else None
     path = opened or default_design_path()
-    design = design_mod.load_design(path)
+    design = design_mod.load_design(path, (str(uploaded_meshes_dir()),))
     server = viser.ViserServer(host=host, port=port, verbose=False)
     autosave = autosave_path_for(opened, design.name)
     studio = Studio(server, design, autosave)

@@ -51,6 +51,7 @@ DENSITY_RANGE = (1.0, 1e5)
 #: the meshes shipped with paraloop (``assets/meshes``), found by file name from any design
 BUNDLED_MESHES = Path(__file__).resolve().parent.parent / "assets" / "meshes"
 
+
 def _g(x: float) -> str:
     return f"{x:g}"
 
@@ -138,8 +139,7 @@ def evolution(v: Any, n_poses: int) -> dict[str, Any]:
     try:
         settings = evolution_settings(d)
     except DesignFileError as exc:
-        msg = str(exc)[len(exc.field) + 2:]
-        raise DesignFileError(f"evolution.{exc.field}", msg) from exc
+        raise DesignFileError(f"evolution.{exc.field}", exc.message) from exc
     except (TypeError, ValueError) as exc:
         raise DesignFileError("evolution", str(exc)[:200]) from exc
     if settings.four_pose_indices is not None and max(settings.four_pose_indices) >= n_poses:

@@ -89,7 +89,7 @@ def _writable_dir(d: Path) -> None:
             raise OutputError(f"{probe}: exists and is not a directory")
         fd, tmp = tempfile.mkstemp(prefix=".paraloop-probe.", suffix=".tmp", dir=probe)
     except OSError as exc:
-        raise OutputError(f"{one_line(probe, 200)}: cannot write there "
+        raise OutputError(f"{one_line(str(probe), 200)}: cannot write there "
                           f"({exc.strerror or exc})") from exc
     try:
         os.write(fd, b"\n")
@@ -111,7 +111,7 @@ def check_file_target(path: Path, force: bool) -> None:
             if not force:
                 raise OutputError(f"{path}: already exists (use --force to overwrite)")
     except OSError as exc:  # e.g. a name too long
-        raise OutputError(f"{one_line(path, 200)}: cannot use it ({exc.strerror or exc})"
+        raise OutputError(f"{one_line(str(path), 200)}: cannot use it ({exc.strerror or exc})"
                           ) from exc
     _writable_dir(path.parent)
 
@@ -123,7 +123,7 @@ def check_dir_target(out: Path, names: Iterable[str], force: bool) -> None:
         if out.exists() and not out.is_dir():
             raise OutputError(f"{out}: exists and is not a directory")
     except OSError as exc:
-        raise OutputError(f"{one_line(out, 200)}: cannot use it ({exc.strerror or exc})"
+        raise OutputError(f"{one_line(str(out), 200)}: cannot use it ({exc.strerror or exc})"
                           ) from exc
     _writable_dir(out)
     if out.is_dir():

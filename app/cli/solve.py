@@ -28,7 +28,7 @@ def plan_solve(designs: list[Path], out: Path, force: bool) -> tuple[list[Path],
     try:
         single = len(designs) == 1 and out.suffix == ".json" and not out.is_dir()
     except OSError as exc:  # a name too long
-        raise outputs.OutputError(f"{outputs.one_line(out, 200)}: cannot use it "
+        raise outputs.OutputError(f"{outputs.one_line(str(out), 200)}: cannot use it "
                                   f"({exc.strerror or exc})") from exc
     if single:
         outputs.check_file_target(out, force)

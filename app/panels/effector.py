@@ -20,7 +20,7 @@ import numpy as np
 import viser
 
 from app.exports import slug
-from app.state import uploaded_meshes_dir
+from app.state import uploaded_meshes_dir, with_uploads
 from app.worker import FRAME, FULL
 from paraloop_core.design import Design, EndEffectorSettings
 from paraloop_core.errors import EndEffectorError
@@ -139,7 +139,9 @@ class EffectorPanel:
         if settings is not None:
             settings = dataclasses.replace(settings, **changes)
         if settings != studio.state.design.end_effector:
-            studio.state.edit(lambda d: dataclasses.replace(d, end_effector=settings), merge)
+            # an uploaded mesh is found among the uploads (Design.mesh_dirs), never by its path
+            studio.state.edit(lambda d: dataclasses.replace(
+                with_uploads(d) if body == "Mesh" else d, end_effector=settings), merge)
             studio.request(FULL, sync=sync)
 
     def _upload(self, event: Any) -> None:
