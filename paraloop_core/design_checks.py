@@ -148,6 +148,18 @@ def evolution(v: Any, n_poses: int) -> dict[str, Any]:
     return d
 
 
+def design_field(param: str | None, design: Any) -> str | None:
+    """The design field a realization or end-effector parameter (``ParaloopError.param``)
+    came from: ``rho`` is ``realization.rho`` when set, else ``realization.rho_fraction``."""
+    r, owner = design.realization, "end_effector" if param in _EE_PARAMS else "realization"
+    if param in ("rho", "d") and getattr(r, param) is None:
+        param += "_fraction"
+    return None if param is None else f"{owner}.{param}"
+
+
+_EE_PARAMS = ("mesh", "scale", "L", "R", "clearance")
+
+
 def check_depth(data: Any, path: str = "design") -> None:
     """Refuse nesting deeper than :data:`MAX_DEPTH` (iteratively: no RecursionError)."""
     stack = [(data, 1)]

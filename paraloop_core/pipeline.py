@@ -14,7 +14,8 @@ from typing import Any
 import numpy as np
 
 from paraloop_core.algebra import dq, factor
-from paraloop_core.design import Design, check_pose_count
+from paraloop_core.design import Design, check_pose_count, mesh_file
+from paraloop_core.design_checks import design_field
 from paraloop_core.errors import ParaloopError, RealizationError
 from paraloop_core.linkage import loops, singularity
 from paraloop_core.motion import fourpose, metric
@@ -197,18 +198,6 @@ def solve(design: Design, *, realize: bool = True, other_loops: bool = True,
                 exc.in_field(field)
             raise
     return sol
-
-
-def design_field(param: str | None, design: Design) -> str | None:
-    """The design field a realization or end-effector parameter (``ParaloopError.param``)
-    came from: ``rho`` is ``realization.rho`` when set, else ``realization.rho_fraction``."""
-    r, owner = design.realization, "end_effector" if param in _EE_PARAMS else "realization"
-    if param in ("rho", "d") and getattr(r, param) is None:
-        param += "_fraction"
-    return None if param is None else f"{owner}.{param}"
-
-
-_EE_PARAMS = ("mesh", "scale", "L", "R", "clearance")
 
 
 def _params(sol: Solution, rho_f: float = 1.0, d_f: float = 1.0) -> dict[str, Any]:
@@ -401,7 +390,6 @@ def _with_realization(sol: Solution, other_loops: bool, quick_work: int | None =
 
 def attach_end_effector(sol: Solution) -> Any:
     """The design's end-effector polyhedron placed at the reference pose on the chosen loop."""
-    from paraloop_core.design import mesh_file
     from paraloop_core.realization import endeffector as eem
 
     s = sol.design.end_effector
