@@ -119,9 +119,9 @@ def test_printed_pin_and_its_cap():
     pieces = {p.role: p for p in j.pieces}
     head, shaft, cap = pieces["pin head"], pieces["pin"], pieces["pin cap"]
     assert all(p.printed for p in j.pieces)
-    # the head outside link j's boss
-    assert head.s1 == pytest.approx(j.lower[0]) and shaft.s0 == pytest.approx(j.lower[0])
-    assert cap.s0 == pytest.approx(j.upper[1] + c)  # the cap past link j+1's by the clearance
+    # the head and the cap stand the clearance off the bosses' outer faces
+    assert head.s1 == pytest.approx(j.lower[0] - c) and shaft.s0 == pytest.approx(head.s1)
+    assert cap.s0 == pytest.approx(j.upper[1] + c)
     assert shaft.s1 - cap.s0 == pytest.approx(profiles.PRINTED_CAP_DEPTH_MM)
     assert shaft.radius == profiles.PRINTED_PIN_D_MM / 2
     assert j.bore == pytest.approx((shaft.radius + c + GENERIC.hole_allowance_mm / 2,) * 2)
