@@ -27,9 +27,10 @@ from paraloop_core.linkage import loops
 from paraloop_core.realization import polyline, realize
 
 #: Size (mm, longest side of the polyline) of the test assemblies per joint kind: level 0 (the
-#: aims) holds there (an M4 screw or a 5 mm printed pin needs more room than an M3 screw).
-SIZE_MM = 180.0
-SIZES = {"m3": SIZE_MM, "m4": 220.0, "printed-pin": 220.0}
+#: aims) holds there (an M4 screw or a 5 mm printed pin needs more room than an M3 screw; the
+#: washers and nuts outside the bosses need room past the joints' ends).
+SIZE_MM = 220.0
+SIZES = {"m3": SIZE_MM, "m4": 260.0, "printed-pin": 260.0}
 #: Verification samples of :func:`printed` (the export's default is 720).
 SAMPLES = 90
 GENERIC = profiles.PRINTERS["generic"]

@@ -1,4 +1,5 @@
-"""Joint layouts (:mod:`fabrication.joints`): engagement, stock screws, recesses, printed pins,
+"""Joint layouts (:mod:`fabrication.joints`): engagement, stock screws and their hardware
+outside the bosses, printed pins,
 the grounding rod, the split between two bars, what bounds a joint, print-in-place refusals."""
 
 from __future__ import annotations
@@ -30,8 +31,9 @@ def pin(kind: str, length: float = 10.0, boss: float = 6.0, rod_side: int | None
 
 
 def held(j: joints.Joint) -> tuple[float, float]:
-    """Length (mm) of the axle each boss holds beyond its recess, from the boss ranges."""
-    return (j.lower[1] - j.lower[0] - j.recess[0], j.upper[1] - j.upper[0] - j.recess[1])
+    """Length (mm) of the axle each boss holds (its whole length: the hardware sits outside),
+    from the boss ranges."""
+    return (j.lower[1] - j.lower[0], j.upper[1] - j.upper[0])
 
 
 KINDS = [("m3", None), ("m4", None), ("printed-pin", None), ("rod", 0), ("rod", 1)]
@@ -82,35 +84,38 @@ def test_stock_screw_passes_the_nut(kind, length):
     head, screw = pieces["screw head"], pieces["screw"]
     washer, nut = pieces["thrust washer"], pieces["lock nut"]
     assert j.screw_mm in f.lengths_mm and screw.s1 - screw.s0 == pytest.approx(j.screw_mm)
-    # the head on the floor of link j's counterbore, sunk below the boss's face
-    assert head.s1 == pytest.approx(j.lower[0] + j.recess[0])
-    assert head.s0 == pytest.approx(j.lower[0] + joints.RECESS_MM)
-    assert head.s1 - head.s0 == pytest.approx(f.head_h_mm) and screw.s0 == pytest.approx(head.s1)
-    # the washer fills the gap between the bosses
+    outer = sorted((p for p in j.pieces if p.role == "washer"), key=lambda p: p.s0)
+    assert len(outer) == 2
+    # head on a washer on link j's outer face: nothing is sunk into the boss
+    assert (outer[0].s0, outer[0].s1) == pytest.approx((j.lower[0] - f.washer_t_mm, j.lower[0]))
+    assert head.s1 == pytest.approx(outer[0].s0) and screw.s0 == pytest.approx(head.s1)
+    assert head.s1 - head.s0 == pytest.approx(f.head_h_mm)
+    # the thrust washer fills the gap between the bosses
     assert (washer.s0, washer.s1) == pytest.approx((j.lower[1], j.upper[0]))
     assert j.gap == f.washer_t_mm
-    # the nut in link j+1's trap, the tip past it by the protrusion
-    assert j.upper[1] - j.recess[1] <= nut.s0 and nut.s1 <= j.upper[1]
+    # washer and lock nut on link j+1's outer face, the tip past the nut by the protrusion
+    assert (outer[1].s0, outer[1].s1) == pytest.approx((j.upper[1], j.upper[1] + f.washer_t_mm))
+    assert nut.s0 == pytest.approx(outer[1].s1)
     assert nut.s1 - nut.s0 == pytest.approx(f.nut_h_mm) and nut.sides == 6
-    assert screw.s1 - nut.s1 == pytest.approx(joints.PROTRUDE_MM)
-    # the shortest stock length: with the far boss as short as its engagement allows, the
-    # next shorter screw would not pass the nut
-    want = profiles.ENGAGE_TARGET * f.d_mm
-    end = max(j.upper[0] + j.recess[1] + want, length + joints.MIN_OUTER_MM)
-    need = end - j.recess[1] + f.nut_h_mm + joints.PROTRUDE_MM - screw.s0
+    assert screw.s1 - nut.s1 >= joints.PROTRUDE_MM - 1e-9
+    # the shortest stock length that passes the nut: the next shorter one would not
+    need = nut.s1 + joints.PROTRUDE_MM - screw.s0
     assert j.screw_mm >= need - 1e-9
     assert all(v < need - 1e-9 for v in f.lengths_mm if v < j.screw_mm)
-    assert j.upper[1] == pytest.approx(end + j.screw_mm - need)  # the boss grew to meet it
+    # every boss holds its axle over the engagement target
+    assert min(held(j)) >= profiles.ENGAGE_TARGET * f.d_mm - 1e-9
 
 
-def test_recesses():
+def test_the_hardware_sits_outside_the_bosses():
+    """No piece of metal hardware but the screw's shank lies inside a boss's range: no
+    counterbore or nut trap is cut, so a boss needs a wall only around its bore."""
     for kind in ("m3", "m4"):
-        f = profiles.FASTENERS[kind]
-        assert joints.recess_mm(kind) == (f.head_h_mm + joints.RECESS_MM,
-                                          f.nut_h_mm + joints.RECESS_MM)
-        assert pin(kind).recess == joints.recess_mm(kind)
-    assert joints.recess_mm("m3") == pytest.approx((3.3, 4.3))
-    assert joints.recess_mm("printed-pin") == joints.recess_mm("rod") == (0.0, 0.0)
+        j = pin(kind, 10.0, boss=7.0)
+        for p in j.pieces:
+            if p.role in ("screw", "thrust washer"):
+                continue
+            for lo, hi in (j.lower, j.upper):
+                assert p.s1 <= lo + 1e-9 or p.s0 >= hi - 1e-9, (kind, p.role)
 
 
 def test_printed_pin_and_its_cap():

@@ -1,6 +1,6 @@
 """The printed parts (:mod:`fabrication.parts`, built by :mod:`assembly`): valid one-piece
-solids inside their capsules, flat on the bed, bores with their walls, recesses for the
-hardware, joints that turn without touching."""
+solids inside their capsules, flat on the bed, bores with their walls, plain bores and
+flat faces for the hardware outside, joints that turn without touching."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from paraloop_core.errors import FabricationError
-from paraloop_core.fabrication import check, layout, parts, profiles, sizing, stiffness
+from paraloop_core.fabrication import check, flat, layout, parts, profiles, sizing, stiffness
 from paraloop_core.fabrication.assembly import Assembly
 
 ASSEMBLIES = ["m3", "printed-pin", "grounded"]
@@ -58,19 +58,16 @@ def test_every_vertex_lies_in_its_capsules(which):
 
 @pytest.mark.parametrize("which", ["m3", "grounded"])
 def test_print_flat_is_the_lowest_face(which):
-    """Each link is cut at its bar's down face: no material beyond that plane, the faces on
-    it face the bed, and laid on the bed they are where it stands, at least the bar's face."""
+    """Each link is cut at its bar's down face, or deeper by :func:`flat.lift` where a bore
+    needs it: no material beyond that plane, the faces on it face the bed, and laid on the
+    bed they are where it stands: at least the bar's face, or the bosses' cut faces."""
     asm = assembly_of(which)
-    if np.any(asm.slack < 0):  # links not cut flat (their bores would break): said so
-        assert which == "grounded" and any("print with supports" in w
-                                           for w in F.printed().report["warnings"])
     for p in asm.links:
         i = p.link
-        if asm.slack[i] < 0:
-            continue
         r = float(asm.plan.radii[i])
         bar = asm.bars[i]
         level = float(np.max(bar.reshape(-1, 3) @ p.down)) + r * np.sqrt(3) / 2
+        level += flat.lift(asm.slack[i])
         tm = F.mesh_of(p.manifold)
         h = tm.vertices @ p.down
         assert h.max() == pytest.approx(level, abs=F.float32_slack(tm.vertices))
@@ -78,7 +75,10 @@ def test_print_flat_is_the_lowest_face(which):
         face = tm.area_faces[on].sum()
         assert np.all(tm.face_normals[on] @ p.down > 0.99)
         length = float(np.linalg.norm(bar[0][1] - bar[0][0]))
-        assert face >= r * length * 0.9  # a hexagon's side is its corner radius
+        if asm.slack[i] >= 0:
+            assert face >= r * length * 0.9  # a hexagon's side is its corner radius
+        else:  # on the bosses' cut faces: each keeps at least a wall's width
+            assert face >= asm.printer.wall_mm ** 2, (p.name, face)
         rot = layout.to_bed(p.down)
         laid = tm.vertices @ rot[:3, :3].T
         assert laid[:, 2].min() == pytest.approx(-level, abs=F.float32_slack(tm.vertices))
@@ -99,7 +99,7 @@ def _radial(j, phi: np.ndarray) -> np.ndarray:
 
 @pytest.mark.parametrize("which", ASSEMBLIES)
 def test_bores_keep_the_profile_wall(which):
-    """Rays from the axis across each bore's held length (recesses excluded), every 22.5 deg
+    """Rays from the axis across each bore's held length, every 22.5 deg
     and straight towards the print flat: the bore is clear to its radius, and the material
     around it is at least the printer's wall thick."""
     asm = assembly_of(which)
@@ -108,8 +108,7 @@ def test_bores_keep_the_profile_wall(which):
         tris = F.mesh_of(p.manifold).triangles
         for j, upper in _sides(asm, p.link):
             s0, s1 = j.upper if upper else j.lower
-            rec = j.recess[1 if upper else 0]
-            held = (s0, s1 - rec) if upper else (s0 + rec, s1)
+            held = (s0, s1)
             bore = j.bore[1 if upper else 0]
             down = p.down - (p.down @ j.w) * j.w
             dirs = np.vstack([_radial(j, np.arange(16) * np.pi / 8 + 0.0123),
@@ -122,28 +121,28 @@ def test_bores_keep_the_profile_wall(which):
                         p.name, j.index, s, hits[:2])
 
 
-def test_recesses_hold_head_and_nut():
-    """Screw joints: link j's boss has the head's counterbore (round, head + seat) for its
-    recess depth, link j+1's the nut's hexagonal trap; past them the bore."""
+def test_screw_bores_run_plain_to_faces_the_washers_bear_on():
+    """Screw joints: the hardware sits outside the bosses, so each bore is plain to the boss's
+    outer face (no counterbore or nut trap) and that face is where the material ends along
+    the axis, all round the bore (the washer under the head or the nut bears on it)."""
     asm = F.assembly("m3")
-    f = profiles.FASTENERS["m3"]
+    phi = np.arange(24) * np.pi / 12 + 0.0123
     for j in asm.joints:
         lower, upper = asm.parts[j.index], asm.parts[(j.index + 1) % 6]
-        phi = np.arange(24) * np.pi / 12 + 0.0123
-        head = f.head_d_mm / 2 + parts.SEAT_MM
-        trap = (f.nut_af_mm + parts.SEAT_MM) / 2  # across flats, halved: the trap's inradius
-        cases = [(lower, j.lower[0] + 0.5 * j.recess[0], head - polygon_error(head),
-                  head + 1e-4),
-                 (upper, j.upper[1] - 0.5 * j.recess[1], trap - 1e-4,
-                  trap / np.cos(np.pi / 6) + 1e-4),
-                 (lower, j.lower[0] + j.recess[0] + 0.3, j.bore[0] - polygon_error(j.bore[0]),
-                  j.bore[0] + 1e-4),
-                 (upper, j.upper[1] - j.recess[1] - 0.3, j.bore[1] - polygon_error(j.bore[1]),
-                  j.bore[1] + 1e-4)]
-        for part, s, lo, hi in cases:
+        for part, upper_side in ((lower, False), (upper, True)):
             tris = F.mesh_of(part.manifold).triangles
-            first = np.array([F.ray_hits(tris, j.at(s), d)[0] for d in _radial(j, phi)])
-            assert lo <= first.min() and first.max() <= hi, (part.name, j.index, s)
+            bore = j.bore[1 if upper_side else 0]
+            face = j.upper[1] if upper_side else j.lower[0]
+            out = j.w if upper_side else -j.w
+            for s in (face - 0.3 * out @ j.w, 0.5 * sum(j.upper if upper_side else j.lower)):
+                first = np.array([F.ray_hits(tris, j.at(s), d)[0] for d in _radial(j, phi)])
+                assert bore - polygon_error(bore) - 1e-4 <= first.min(), (part.name, j.index)
+                assert first.max() <= bore + 1e-4, (part.name, j.index, s)
+            ring = bore + 0.5 * asm.printer.wall_mm  # inside what the print flat keeps
+            for d in _radial(j, phi[::3]):
+                start = j.at(face) - 0.5 * out + ring * d  # inside the wall, under the face
+                assert F.ray_hits(tris, start, out)[0] == pytest.approx(0.5, abs=1e-3), (
+                    part.name, j.index)
 
 
 @pytest.mark.parametrize("which", ASSEMBLIES)

@@ -63,7 +63,7 @@ def bounds() -> sizing.Bounds:
     return sizing.bounds_of(F.real())
 
 
-def _inputs(b: sizing.Bounds, size: float = 200.0, cap: float = 12.0):
+def _inputs(b: sizing.Bounds, size: float = F.SIZES["m4"], cap: float = 12.0):
     """A programme whose rows bind: M4 joints at ``size``, bars up to ``cap`` mm."""
     k = size / b.extent
     rmin = sizing.min_radii(b, k, GENERIC, "m4", 1)
@@ -137,8 +137,9 @@ def _lw(p: sizing.Plan, b: sizing.Bounds) -> np.ndarray:
 
 
 def test_aims_then_floors(bounds):
-    """At 180 mm the aims hold (bars >= 7 mm wide, <= 25 times as long, gaps 10 % over 3x
-    the deflections); at 400 mm only the floors (6 mm, 30) and the plan says so."""
+    """At the fixtures' size (220 mm) the aims hold (bars >= 7 mm wide, <= 25 times as long,
+    gaps 10 % over 3x the deflections); at 400 mm only the floors (6 mm, 30) and the plan
+    says so."""
     p = F.plan("m3")
     assert p.level == 0 and p.aims_met
     assert np.all(p.radii * SQ3 >= sizing.WIDTH_AIM_MM - 1e-9)
