@@ -275,10 +275,7 @@ def _ground(asm: Assembly, opts: Options) -> tuple[Assembly, base.Base | None, l
             found.setdefault((cap, flat_ok), grounded)
     for cap, flat_ok in ((True, False), (False, True), (False, False)):
         if (cap, flat_ok) in found:
-            return (*found[cap, flat_ok], warnings + (
-                [] if flat_ok else ["the two links on the grounding rod cannot lie on their "
-                                    "bars' faces without breaking into the rod's bore: they "
-                                    "stand on their bosses, the bars print with supports"]))
+            return (*found[cap, flat_ok], warnings)  # make() names the links not flat
     return asm, None, warnings + ["no grounding rod clears the moving links over the whole "
                                   "cycle: exported without a base (hold it by a link, or hang "
                                   "it)"]
@@ -368,6 +365,12 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
             progress(0.4, "grounding: rod and base plate")
         asm, b, warnings = _ground(asm, opts)
     ver = check.verify(asm, opts.samples, progress=_stage(progress, 0.45, 0.95))
+    lifted = [i for i in range(6) if asm.slack[i] < 0]
+    if lifted:
+        warnings.append(f"link{'s' if len(lifted) > 1 else ''} "
+                        f"{', '.join(map(str, lifted))} cannot lie on the bar's face without "
+                        "breaking into a bore: printed standing on the bosses' cut faces, the "
+                        "bar over supports")
     report = {
         "choice": {"realization": cand.label, "loop": cand.loop, "tried": tried,
                    "radius": real.radius, "separation": real.separation},
