@@ -276,9 +276,7 @@ def _ground(asm: Assembly, opts: Options) -> tuple[Assembly, base.Base | None, l
     for cap, flat_ok in ((True, False), (False, True), (False, False)):
         if (cap, flat_ok) in found:
             return (*found[cap, flat_ok], warnings)  # make() names the links not flat
-    return asm, None, warnings + ["no grounding rod clears the moving links over the whole "
-                                  "cycle: exported without a base (hold it by a link, or hang "
-                                  "it)"]
+    return asm, None, warnings + [NO_BASE]
 
 
 def _rods(asm: Assembly, b: base.Base, opts: Options) -> list[Rod]:
@@ -314,6 +312,11 @@ def _rod_joint(asm: Assembly, joint: int, opts: Options, rod: Rod, side: int, ca
 #: How far the end-effector link's bars reach past P's corners L and R towards its centroid
 #: (a fraction of the way): inside P, not on its corner.
 END_INSET = 1e-4
+#: How to hold a loop without a base, and why it has none.
+HOLD = ("hold it by a link (clamp or screw the link's boss to a stand) or hang it by a link "
+        "on a string")
+NO_BASE = ("no grounding rod clears the moving links over the whole cycle: exported without a "
+           "base; " + HOLD)
 #: Plates built for one grounding: the first, then grown for the measured centre of mass.
 PLATE_ROUNDS = 3
 
@@ -380,6 +383,9 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
         "print_flat_slack_mm": asm.slack.tolist()}
     if b is not None:
         report["base"] = base.to_dict(b, opts.printer.bed_mm)
+    # how the loop is held where no base stands on its own (None: it stands)
+    report["mount"] = (None if b is not None and b.stands else b.mount if b is not None else
+                       NO_BASE if opts.ground else "exported without a base: " + HOLD)
     if ee is not None:  # how P became part of link 3 (endlink: closed, hull or thickened)
         from paraloop_core.fabrication import endlink
 
