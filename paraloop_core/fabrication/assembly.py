@@ -13,6 +13,7 @@ from dataclasses import dataclass, field, replace
 import manifold3d as m3d
 import numpy as np
 
+from paraloop_core.errors import FabricationError
 from paraloop_core.fabrication import flat, layout, parts, sizing
 from paraloop_core.fabrication.joints import Joint
 from paraloop_core.fabrication.parts import Part
@@ -22,6 +23,10 @@ from paraloop_core.fabrication.profiles import Printer
 TRIAL_SEGMENTS = 8
 #: Extra polygon segments tried when a boolean pinches two vertices onto one position.
 RETESSELLATE = (0, 2, 6)
+#: How far (mm) into its bar a link's print flat is cut where every tessellation pinched.
+INTO_BAR_MM = 0.02
+#: Turns (degrees) of the print flat about the bar tried last where a link still pinches.
+TURN_DEG = (2.0, -2.0)
 
 
 @dataclass(frozen=True)
@@ -109,11 +114,29 @@ def _link(plan: sizing.Plan, i: int, bars: np.ndarray, layouts: tuple[Joint, ...
     else:
         level = float(np.max(bars.reshape(-1, 3) @ down)) + r * sizing.APOTHEM
         slack = flat.wall_slack(down, level, sides, printer.wall_mm)
-    for more in RETESSELLATE:  # another tessellation where a boolean pinched the solid
-        part = make(down, flat.lift(slack), parts.SEGMENTS + more)
+    # another tessellation where a boolean pinched the solid; then the cut a hair into the
+    # bar (the bar's own face on the cutting plane can leave slivers at one tessellation
+    # after another; cutting it keeps every wall while the slack allows)
+    tries = [(more, 0.0, down) for more in RETESSELLATE]
+    if (slack if slack >= 0 else flat.LIFT_ROOM_MM) >= 2 * INTO_BAR_MM:
+        tries.append((RETESSELLATE[0], -INTO_BAR_MM, down))
+    # last, the flat turned a little about the bar (a coincidence of the geometry itself)
+    axis = (main[1] - main[0]) / np.linalg.norm(main[1] - main[0])
+    tries += [(RETESSELLATE[0], 0.0, _turned(down, axis, a)) for a in TURN_DEG]
+    for more, into, d in tries:
+        level = float(np.max(bars.reshape(-1, 3) @ d)) + r * sizing.APOTHEM
+        s = flat.wall_slack(d, level, sides, printer.wall_mm)
+        part = make(d, flat.lift(s) + into, parts.SEGMENTS + more)
         if not parts.pinched(part.manifold):
-            break
-    return part, float(slack)
+            return part, float(s)
+    raise FabricationError(f"link_{i} comes out pinched (two vertices at one position) at "
+                           "every tessellation and flat tried", "not-watertight")
+
+
+def _turned(v: np.ndarray, axis: np.ndarray, deg: float) -> np.ndarray:
+    """``v`` turned by ``deg`` about the unit ``axis`` (Rodrigues)."""
+    a = np.radians(deg)
+    return v * np.cos(a) + np.cross(axis, v) * np.sin(a) + axis * (axis @ v) * (1 - np.cos(a))
 
 
 def _faces(solid: m3d.Manifold) -> np.ndarray:

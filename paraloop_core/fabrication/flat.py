@@ -6,12 +6,15 @@ direction); which face is a turn about the bar (:data:`TURNS_DEG`). Everything b
 is cut off, bosses included, so every bore must keep the printer's wall between it and the
 flat (:func:`room`; the hardware sits outside the bosses: there are no recesses to keep). A
 joint axis is a straight line, so along a boss the distance to the flat is linear and its two
-ends decide (:func:`depths`). A bar of corner radius ``r`` has its flat ``r sqrt(3) / 2``
-below its axis, which passes through the link's joint points: the flat keeps every wall when
-that is at least the deepest point a wall needs (:func:`least_depth`, minimised over the
-turns), which :mod:`sizing` uses to size the bars and :mod:`layout` to pick the turn. Where
-the room between the links does not allow so thick a bar, the link is cut deeper
-(:func:`lift`): it stands on its bosses' cut faces and its bar prints over support.
+ends decide (:func:`depths`): the deepest point of the cylinder of radius ``room`` about that
+stretch of axis is an end's depth plus ``room`` times the sine of the axis' angle to the
+flat's normal (exact: a steep axis needs less than a level one). A bar of corner radius ``r``
+has its flat ``r sqrt(3) / 2`` below its axis, which passes through the link's joint points:
+the flat keeps every wall when that is at least the deepest point a wall needs
+(:func:`least_depth`, minimised over the turns), which :mod:`sizing` uses to size the bars and
+:mod:`layout` to pick the turn. Where the room between the links does not allow so thick a
+bar, the link is cut deeper (:func:`lift`): it stands on its bosses' cut faces and its bar
+prints over support.
 """
 
 from __future__ import annotations
@@ -53,7 +56,12 @@ def depths(downs: np.ndarray, joints: list[tuple[Joint, bool]], wall: float) -> 
     deepest = np.full(len(downs), -np.inf)
     for j, upper in joints:
         ends = np.stack([j.at(s) for s in (j.upper if upper else j.lower)])  # (2, 3)
-        deepest = np.maximum(deepest, (downs @ ends.T).max(axis=1) + room(j, upper, wall))
+        # the cylinder of radius room about the boss's stretch of axis reaches below an end
+        # only across the axis: by room |sin| of the axis' angle to down (the bore is open
+        # at the boss's faces, so nothing is kept past them)
+        across = np.sqrt(np.clip(1.0 - (downs @ j.w) ** 2, 0.0, 1.0))
+        deepest = np.maximum(deepest, (downs @ ends.T).max(axis=1)
+                             + room(j, upper, wall) * across)
     return deepest
 
 

@@ -168,9 +168,9 @@ def link_part(i: int, bars: np.ndarray, radius: float, down: np.ndarray,
     end-effector ``S_3 L``, ``R E_3``) of hex corner ``radius`` with flat face ``down``, its
     joints ``i - 1`` (upper side) and ``i`` (lower side), ``extra`` solids joined to it (P,
     a carved body), clearance ``printer_c``; cut at the print flat ``lift`` mm below the bar's
-    down face (> 0 where a bore needs the cut deeper: the bar then prints over support; None
-    or an ``extra``: not cut); ``segments`` of round solids (fewer for trial parts). Raises
-    :class:`FabricationError` when the cuts leave it in pieces."""
+    down face (> 0 where a bore needs the cut deeper: the bar then prints over support; < 0
+    into the bar; None or an ``extra``: not cut); ``segments`` of round solids (fewer for
+    trial parts). Raises :class:`FabricationError` when the cuts leave it in pieces."""
     lower, upper = joints[i], joints[(i - 1) % 6]
     body = m3d.Manifold.batch_boolean([hex_bar(p0, p1, radius, down) for p0, p1 in bars],
                                       m3d.OpType.Add)
@@ -200,7 +200,7 @@ def link_part(i: int, bars: np.ndarray, radius: float, down: np.ndarray,
     face = np.asarray(down, float)
     level = float(np.max(bars.reshape(-1, 3) @ face)) + radius * np.sqrt(3.0) / 2
     if lift is not None and extra is None:
-        level += max(float(lift), 0.0)
+        level += float(lift)
         body = body.trim_by_plane(tuple(-face), -level)
     body = _one_piece(body, i)
     for j, up in ((lower, False), (upper, True)):
@@ -263,10 +263,17 @@ def piece_parts(joints: tuple[Joint, ...]) -> list[Part]:
 
 
 def pinched(man: m3d.Manifold) -> bool:
-    """Two vertices at one float32 position (a boolean can pinch a solid so): valid for
-    manifold3d, but a slicer that merges vertices by position reads an open mesh there."""
-    v = np.asarray(man.to_mesh().vert_properties[:, :3], np.float32)
-    return len(np.unique(v, axis=0)) < len(v)
+    """Two vertices at one position, or within trimesh's merge tolerance (a boolean can pinch
+    a solid so): valid for manifold3d, but a slicer that merges vertices by position (and the
+    exported mesh, merged by trimesh) reads an open mesh there."""
+    import trimesh  # the exported meshes are merged by trimesh: the same test decides
+
+    mesh = man.to_mesh()
+    v = np.asarray(mesh.vert_properties[:, :3], np.float32)
+    if len(np.unique(v, axis=0)) < len(v):
+        return True
+    tm = trimesh.Trimesh(v.astype(float), np.asarray(mesh.tri_verts, np.int64), process=True)
+    return not tm.is_watertight
 
 
 def check_solid(man: m3d.Manifold, name: str) -> None:

@@ -265,8 +265,8 @@ def _ground(asm: Assembly, opts: Options) -> tuple[Assembly, base.Base | None, l
         for rod, cap in ((rod, cap) for rod in _rods(asm, b, opts) for cap in (True, False)):
             try:
                 grounded = _on_rod(asm, replace(b, rod=rod), opts, cap)
-            except FabricationError as exc:
-                if exc.reason not in ("falls-apart", "bad-parameters"):
+            except FabricationError as exc:  # this rod or side leaves a link in pieces
+                if exc.reason not in ("falls-apart", "bad-parameters", "not-watertight"):
                     raise
                 continue
             flat_ok = all(grounded[0].slack[i] >= 0 for i in (b.joint, (b.joint + 1) % 6))
@@ -357,8 +357,8 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
         try:
             asm, plan = _fit_and_build(real, ee, plan, opts)
             break
-        except FabricationError as exc:  # a link cut through: the next candidate
-            if exc.reason != "falls-apart" or n == len(ranked) - 1:
+        except FabricationError as exc:  # a link cut through or pinched: the next one
+            if exc.reason not in ("falls-apart", "not-watertight") or n == len(ranked) - 1:
                 raise
             tried.append(f"{cand.label}: not built ({exc})")
     warnings: list[str] = []
