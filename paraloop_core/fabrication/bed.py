@@ -42,6 +42,15 @@ def fit_factor(extents_mm: np.ndarray, printer: Printer) -> np.ndarray:
     return best
 
 
+def laid_fit_factor(extents_mm: np.ndarray, printer: Printer) -> np.ndarray:
+    """:func:`fit_factor` of parts laid as they will print (box extents ``(P, 3)`` with z up:
+    only turned about the vertical, not stood on another side)."""
+    ext = np.asarray(extents_mm, float)
+    bed = np.asarray(printer.bed_mm, float)
+    f, _ = footprint_turn(ext[..., :2], bed[:2])
+    return np.minimum(f, bed[2] / np.maximum(ext[..., 2], 1e-12))
+
+
 def fits_bed(extents_mm: np.ndarray, printer: Printer) -> np.ndarray:
     """Mask ``(P,)``: parts with box extents ``(P, 3)`` fit the bed in some orientation
     (:func:`fit_factor`)."""

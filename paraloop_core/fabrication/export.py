@@ -139,6 +139,11 @@ def files(asm: Assembly, report: dict, material: profiles.Material, *, rhino: bo
         out.append(("paraloop.3dm", rhino_mod.assembly_3dm(
             meshes, {p.name: color_of(p.link) for p in asm.parts})))
     report["print_layout"] = layout.layout_entry(placements, asm.printer.bed_mm)
+    big = [p["name"] for p in report["print_layout"]["parts"] if not p["fits_bed"]]
+    if big:  # only at a size the maker chose: the automatic size shrinks until all fit
+        report.setdefault("warnings", []).append(
+            f"{', '.join(big)} do{'es' * (len(big) == 1)} not fit the bed laid on its print "
+            "face: choose a smaller size or a larger printer")
     report["parts"] = parts_entry(asm, meshes, material)
     report["bill_of_materials"] = bill_of_materials(asm, material)
     report["scale_mm_per_unit"] = asm.scale

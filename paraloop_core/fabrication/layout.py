@@ -3,8 +3,9 @@
 * **A link's print flat** (:func:`choose_down`): a link is printed lying on one flat face of its
   hexagonal bar (layers along the bar: the strong direction). Which face is free (a turn
   about the bar); it is chosen so that cutting everything below that face off (bosses become
-  flat on the bed) leaves every bore its wall and every recess its floor, and among those so
-  that the least surface needs support, judged on the part itself at coarse resolution.
+  flat on the bed) leaves every bore its wall (:mod:`flat`; else a turn cut deeper), among
+  those laid so that the part fits the bed where one does, and then so that the least surface
+  needs support, judged on the part itself at coarse resolution (the lowest ones compete).
 * **Support** (:func:`support`): a downward face needs support when it leans more than
   :data:`OVERHANG_DEG` from the vertical and lies above the first layer; reported per part as
   area and as the share of the part's downward-facing area.
@@ -56,6 +57,15 @@ def support(vertices: np.ndarray, faces: np.ndarray, down: np.ndarray) -> tuple[
     return float(area[steep & (low > FIRST_LAYER_MM)].sum()), float(area[nz < -1e-9].sum())
 
 
+def laid_extent(vertices: np.ndarray, down: np.ndarray) -> np.ndarray:
+    """Box extents ``(3,)`` (mm) of points ``(n, 3)`` resting on ``down``, turned about the
+    vertical to their smallest footprint (principal axes)."""
+    v = np.asarray(vertices, float) @ to_bed(down)[:3, :3].T
+    xy = v[:, :2] - v[:, :2].mean(0)
+    vt = np.linalg.svd(xy, full_matrices=False)[2]
+    return np.r_[np.ptp(xy @ vt.T, axis=0), np.ptp(v[:, 2])]
+
+
 def choose_down(bar: tuple[np.ndarray, np.ndarray], radius: float,
                 joints: list[tuple[Joint, bool]], printer: profiles.Printer,
                 build, more: np.ndarray | None = None) -> tuple[np.ndarray, float]:
@@ -83,12 +93,16 @@ def choose_down(bar: tuple[np.ndarray, np.ndarray], radius: float,
         except FabricationError:  # a cut of this trial leaves it in pieces: not this one
             continue
         v = mesh.vert_properties[:, :3]
-        figures[k] = (support(v, mesh.tri_verts, downs[k])[0], float(np.ptp(v @ downs[k])))
+        fits = bool(bed.laid_fit_factor(laid_extent(v, downs[k]), printer)[()] >= 1.0)
+        figures[k] = (support(v, mesh.tri_verts, downs[k])[0], float(np.ptp(v @ downs[k])),
+                      fits)
     if not figures:
         return downs[trials[0]], float(slack[trials[0]])
+    if any(f for *_, f in figures.values()):  # laid so that it fits the bed, where one does
+        figures = {k: f for k, f in figures.items() if f[2]}
     # a part standing tall is what comes off the bed mid-print: only the low ones compete
-    low = min(h for _, h in figures.values()) * TALLER + 1.0
-    best = min((k for k, (_, h) in figures.items() if h <= low), key=lambda k: figures[k])
+    low = min(h for _, h, _ in figures.values()) * TALLER + 1.0
+    best = min((k for k, (_, h, _) in figures.items() if h <= low), key=lambda k: figures[k])
     return downs[best], float(slack[best])
 
 

@@ -169,8 +169,9 @@ def link_part(i: int, bars: np.ndarray, radius: float, down: np.ndarray,
     joints ``i - 1`` (upper side) and ``i`` (lower side), ``extra`` solids joined to it (P,
     a carved body), clearance ``printer_c``; cut at the print flat ``lift`` mm below the bar's
     down face (> 0 where a bore needs the cut deeper: the bar then prints over support; < 0
-    into the bar; None or an ``extra``: not cut); ``segments`` of round solids (fewer for
-    trial parts). Raises :class:`FabricationError` when the cuts leave it in pieces."""
+    into the bar; None: not cut, nor where it would cut an ``extra``); ``segments`` of round
+    solids (fewer for trial parts). Raises :class:`FabricationError` when the cuts leave it
+    in pieces."""
     lower, upper = joints[i], joints[(i - 1) % 6]
     body = m3d.Manifold.batch_boolean([hex_bar(p0, p1, radius, down) for p0, p1 in bars],
                                       m3d.OpType.Add)
@@ -199,7 +200,10 @@ def link_part(i: int, bars: np.ndarray, radius: float, down: np.ndarray,
     # the print flat: nothing past the bar's down face (or ``lift`` below it)
     face = np.asarray(down, float)
     level = float(np.max(bars.reshape(-1, 3) @ face)) + radius * np.sqrt(3.0) / 2
-    if lift is not None and extra is None:
+    # an end-effector P is never cut: the flat only where P lies wholly above it
+    clear = extra is None or float(np.max(np.asarray(
+        extra.to_mesh().vert_properties[:, :3], float) @ face)) <= level + float(lift or 0.0)
+    if lift is not None and clear:
         level += float(lift)
         body = body.trim_by_plane(tuple(-face), -level)
     body = _one_piece(body, i)

@@ -216,23 +216,14 @@ def _fit_and_build(real: Realization, ee: object | None, plan: sizing.Plan, opts
     for _ in range(4):
         asm = assembly.assemble(plan, real.points, real.joint_factors, opts.printer,
                                 kind_of(plan), end_bars=end_bars, extras=extras)
-        ext = np.array([_printed_extent(p) for p in asm.links])
-        grow = float(bed.fit_factor(ext, opts.printer).min())
+        ext = np.array([layout.laid_extent(p.manifold.to_mesh().vert_properties[:, :3],
+                                           p.down) for p in asm.links])
+        grow = float(bed.laid_fit_factor(ext, opts.printer).min())  # on their print flats
         if grow >= 1.0 or opts.size_mm is not None:
             return asm, plan
         plan = sizing.plan(real, opts.printer, opts.material, kind_of(plan), opts.rod,
                            size_mm=plan.size_mm * min(grow, 0.99))
     return asm, plan
-
-
-def _printed_extent(p: parts.Part) -> np.ndarray:
-    """Box extents (mm) of a part resting on its down face, turned to its smallest footprint."""
-    v = np.asarray(p.manifold.to_mesh().vert_properties[:, :3], float)
-    if np.linalg.norm(p.down) > 0:
-        v = v @ layout.to_bed(p.down)[:3, :3].T
-    xy = v[:, :2] - v[:, :2].mean(0)
-    vt = np.linalg.svd(xy, full_matrices=False)[2]
-    return np.r_[np.ptp(xy @ vt.T, axis=0), np.ptp(v[:, 2])]
 
 
 def _ground(asm: Assembly, opts: Options) -> tuple[Assembly, base.Base | None, list[str]]:
