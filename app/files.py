@@ -5,16 +5,17 @@ requests)."""
 
 from __future__ import annotations
 
+import hashlib
 import json
 from pathlib import Path
 from typing import Any
 
 from app.exports import animation_file, export_files, slug
-from app.state import StudioState, absolute_mesh, autosave_path_for, find_mesh
+from app.state import StudioState, autosave_path_for, portable_mesh, uploaded_meshes_dir
 from app.worker import FRAME, FULL
 from paraloop_core import design as design_mod
 from paraloop_core import pipeline
-from paraloop_core.errors import DesignFileError
+from paraloop_core.errors import ParaloopError
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "assets" / "designs"
 
@@ -37,7 +38,7 @@ class FileTransfers:
 
     def download_design(self, event: Any) -> None:
         design = self.state.design
-        data = json.dumps(design_mod.design_to_dict(absolute_mesh(design)), indent=2) + "\n"
+        data = json.dumps(design_mod.design_to_dict(portable_mesh(design)), indent=2) + "\n"
         self.send_file(event.client, f"{slug(design.name)}.json", data.encode("utf-8"))
 
     def download_export(self, event: Any) -> None:
@@ -68,26 +69,31 @@ class FileTransfers:
             self.send_file(client, name, data)
 
     def upload_design(self, event: Any) -> None:
+        """*Load design*: the uploaded bytes through the core loader (the command line's, with
+        its limits; an oversized upload is refused before it is decoded); a relative mesh path
+        refers to the opened design's folder (a browser does not tell the file's), else to a
+        bundled or uploaded mesh of that name. Every failure is one notification; the design
+        is then unchanged."""
         upload = event.target.value
+        name = slug(Path(upload.name).stem)[:60] or "design"
         try:
-            try:
-                data = json.loads(upload.content.decode("utf-8"))
-            except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-                raise DesignFileError("file", f"not valid JSON ({exc})") from exc
-            design = design_mod.design_from_dict(data)
-        except DesignFileError as exc:
-            self.notify(f"Cannot load {upload.name}", f"{exc} (the design is unchanged)",
-                        error=True)
+            design = design_mod.load_design_bytes(
+                upload.content, base_dir=self.state.design.base_dir or str(EXAMPLES),
+                mesh_dirs=(str(uploaded_meshes_dir()),))
+        except ParaloopError as exc:
+            self._refuse(upload.name, str(exc))
             return
-        try:
-            design = find_mesh(design, (self.state.design.base_dir, str(EXAMPLES)))
-        except DesignFileError as exc:
-            self.notify(f"Cannot load {upload.name}", f"{exc} (the design is unchanged)",
-                        error=True, cause="load")
+        except Exception as exc:  # a bug: still one message in the page, not a silent failure
+            self._refuse(upload.name, f"internal error ({type(exc).__name__}: {exc})"[:300])
             return
-        # its own autosave: the opened file's one keeps that file's unsaved work
-        self.state.autosave_path = autosave_path_for(None, f"upload-{Path(upload.name).stem}")
+        # its own autosave, keyed by content: the opened file's one keeps that file's work
+        key = hashlib.sha256(upload.content).hexdigest()[:12]
+        self.state.autosave_path = autosave_path_for(None, f"upload-{name}-{key}")
         self.state.commit(design)
         self.reframe()
         self.request(FULL, sync=True)
-        self.notify("Design loaded", upload.name, cause="load")
+        self.notify("Design loaded", upload.name[:200], cause="load")
+
+    def _refuse(self, file_name: str, message: str) -> None:
+        self.notify(f"Cannot load {file_name[:80]}", f"{message} (the design is unchanged)",
+                    error=True, cause="load")

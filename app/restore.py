@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 
 import viser
 
-from app.state import absolute_mesh
+from app.state import absolute_mesh, uploaded_meshes_dir
 from app.worker import FULL
 from paraloop_core import design as design_mod
 from paraloop_core.design import Design
@@ -19,17 +19,23 @@ if TYPE_CHECKING:
     from app.host import StudioHost
 
 
-def newer_autosave(autosave: Path | None, design_path: Path | None
-                   ) -> tuple[Design, float] | str | None:
+def newer_autosave(autosave: Path | None, design_path: Path | None,
+                   base_dir: str | None = None) -> tuple[Design, float] | str | None:
     """The autosaved design and its time when it is newer than ``design_path`` (any autosave
-    when no file was opened), a message when it is unreadable, else None."""
-    if autosave is None or not autosave.exists():
-        return None
-    mtime = autosave.stat().st_mtime
-    if design_path is not None and mtime <= design_path.stat().st_mtime:
-        return None
+    when no file was opened), a message when it is unreadable, else None. It is loaded as the
+    opened design is, against ``base_dir`` (the opened design's folder) and the uploaded
+    meshes: a mesh path that does not resolve there is refused, never restored broken."""
     try:
-        return design_mod.load_design(autosave), mtime
+        if autosave is None or not autosave.exists():
+            return None
+        mtime = autosave.stat().st_mtime
+        if design_path is not None and mtime <= design_path.stat().st_mtime:
+            return None
+    except OSError as exc:
+        return f"ignored the autosave {autosave}: {exc}"
+    folder = base_dir or str(design_path.resolve().parent if design_path else autosave.parent)
+    try:
+        return design_mod.load_design(autosave, (str(uploaded_meshes_dir()),), folder), mtime
     except DesignFileError as exc:
         return f"ignored a broken autosave {autosave}: {exc}"
 
@@ -84,7 +90,7 @@ class RestoreOffer:
 def offer_restore(studio: StudioHost, design_path: Path | None) -> str | None:
     """Offer the autosave when it is newer than the opened file (``studio.restore_offer``);
     returns a line for the terminal, or None."""
-    found = newer_autosave(studio.state.autosave_path, design_path)
+    found = newer_autosave(studio.state.autosave_path, design_path, studio.state.design.base_dir)
     if found is None or isinstance(found, str):
         return found
     design, mtime = found

@@ -72,13 +72,43 @@ def _safe(text: str) -> str:
 
 
 def absolute_mesh(design: Design) -> Design:
-    """``design`` with a relative end-effector mesh path made absolute (against ``base_dir``),
-    so a copy saved anywhere still finds the mesh."""
+    """``design`` with its end-effector mesh path as the file it stands for (absolute), for
+    comparing designs and keying caches: one string per mesh file."""
     ee = design.end_effector
-    if ee is None or ee.mesh is None or Path(ee.mesh).is_absolute():
+    if ee is None or ee.mesh is None:
         return design
-    mesh = str((Path(design.base_dir or ".") / ee.mesh).resolve())
+    try:
+        mesh = design_mod.mesh_file(design)
+    except DesignFileError:  # no such mesh: the path as written is the key
+        mesh = ee.mesh
+    if mesh == ee.mesh:
+        return design
     return dataclasses.replace(design, end_effector=dataclasses.replace(ee, mesh=mesh))
+
+
+def portable_mesh(design: Design) -> Design:
+    """``design`` as a file to save or download: an absolute mesh path (an uploaded mesh)
+    becomes its file name, which the loader finds among the uploaded meshes; no server path
+    leaves the studio. A relative path stays: it refers to the design's folder."""
+    ee = design.end_effector
+    if ee is None or ee.mesh is None or not Path(ee.mesh).is_absolute():
+        return design
+    return dataclasses.replace(design, end_effector=dataclasses.replace(
+        ee, mesh=Path(ee.mesh).name))
+
+
+def uploaded_meshes_dir() -> Path:
+    """Where the studio keeps uploaded meshes (``meshes/<name>-<hash>.<ext>``, keyed by
+    content) in the user data folder; designs find them by file name."""
+    return user_data_dir() / "meshes"
+
+
+def with_uploads(design: Design) -> Design:
+    """``design`` finding its mesh among the uploaded ones too (``Design.mesh_dirs``)."""
+    folder = str(uploaded_meshes_dir())
+    if folder in design.mesh_dirs:
+        return design
+    return dataclasses.replace(design, mesh_dirs=(*design.mesh_dirs, folder))
 
 
 def rescaled(design: Design, factor: float) -> Design:
@@ -103,26 +133,6 @@ def rescaled(design: Design, factor: float) -> Design:
     return dataclasses.replace(design, poses=tuple(pose(p) for p in design.poses),
                                motion=motion, inertia=inertia, realization=real,
                                end_effector=ee)
-
-
-def find_mesh(design: Design, folders: tuple[str | None, ...]) -> Design:
-    """An uploaded design whose end-effector mesh path is relative: a browser does not tell
-    the file's folder, so the path is looked up in ``folders`` (the opened design's, then the
-    examples'); the first that has it becomes ``base_dir``. Raises DesignFileError when the
-    mesh exists nowhere (the design would load, then fail to solve)."""
-    ee = design.end_effector
-    if ee is None or ee.mesh is None:
-        return design
-    if Path(ee.mesh).is_absolute():
-        if Path(ee.mesh).is_file():
-            return design
-    else:
-        for folder in folders:
-            if folder is not None and (Path(folder) / ee.mesh).is_file():
-                return dataclasses.replace(design, base_dir=folder)
-    raise DesignFileError("end_effector.mesh", f"mesh file '{ee.mesh}' not found (relative "
-                          "paths are looked up beside the opened design and the examples); "
-                          "upload the mesh in the End-effector folder instead")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -318,6 +328,7 @@ class StudioState:
                 return False
             design, version = self.design, self.version
         self.autosave_path.parent.mkdir(parents=True, exist_ok=True)
-        design_mod.save_design(absolute_mesh(design), self.autosave_path)
+        # a restore loads it against the opened design's folder and the uploaded meshes
+        design_mod.save_design(portable_mesh(design), self.autosave_path)
         self.saved_version = version
         return True

@@ -34,7 +34,7 @@ from app.plots import Plots
 from app.restore import RestoreOffer, offer_restore
 from app.scene import HIDDEN_AT_START, SceneView
 from app.solver import Solver, incomplete
-from app.state import StudioState, autosave_path_for, migrate_autosave
+from app.state import StudioState, autosave_path_for, migrate_autosave, uploaded_meshes_dir
 from app.status import StatusLine, details, error_headline, scale_warning
 from app.worker import FRAME, FULL, PREVIEW, REFINE, NewestWorker
 from paraloop_core import design as design_mod
@@ -362,7 +362,7 @@ def run_studio(design_path: str | Path | None, host: str = "127.0.0.1", port: in
     """Serve the studio until SIGINT/SIGTERM; prints the URL."""
     opened = Path(design_path) if design_path is not None else None
     path = opened or default_design_path()
-    design = design_mod.load_design(path)
+    design = design_mod.load_design(path, (str(uploaded_meshes_dir()),))
     server = viser.ViserServer(host=host, port=port, verbose=False)
     autosave = autosave_path_for(opened, design.name)
     try:

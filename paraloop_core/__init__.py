@@ -11,22 +11,32 @@ see docs/architecture.md). Conventions are stated once, in ``paraloop_core.algeb
     pl.save_result(solution, "tv8.result.json")
 """
 
-from paraloop_core.design import Design, Pose, design_from_dict, load_design, save_design
-from paraloop_core.errors import (
-    DesignFileError,
-    FabricationError,
-    FitError,
-    InterpolationError,
-    NonGenericMotionError,
-    ParaloopError,
-    RealizationError,
-)
-from paraloop_core.pipeline import Solution, solve
-from paraloop_core.result import result_to_dict, save_result
+from __future__ import annotations
 
-__all__ = [
-    "Design", "Pose", "design_from_dict", "load_design", "save_design",
-    "Solution", "solve", "result_to_dict", "save_result",
-    "ParaloopError", "DesignFileError", "NonGenericMotionError", "InterpolationError",
-    "RealizationError", "FitError", "FabricationError",
-]
+import importlib
+from typing import Any
+
+#: public name -> module that defines it; imported on first use, so that importing a light
+#: submodule (``paraloop_core.errors``) does not load numpy and the pipeline
+_PUBLIC = {
+    **dict.fromkeys(("Design", "Pose", "design_from_dict", "load_design", "load_design_bytes",
+                     "save_design"), "paraloop_core.design"),
+    **dict.fromkeys(("Solution", "solve"), "paraloop_core.pipeline"),
+    **dict.fromkeys(("result_to_dict", "save_result"), "paraloop_core.result"),
+    **dict.fromkeys(("ParaloopError", "DesignFileError", "NonGenericMotionError",
+                     "InterpolationError", "RealizationError", "FitError", "FabricationError",
+                     "EndEffectorError", "NumericalError"), "paraloop_core.errors"),
+}
+__all__ = list(_PUBLIC)
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _PUBLIC:
+        raise AttributeError(f"module 'paraloop_core' has no attribute {name!r}")
+    value = getattr(importlib.import_module(_PUBLIC[name]), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted([*globals(), *_PUBLIC])

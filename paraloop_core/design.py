@@ -18,7 +18,7 @@ import numpy as np
 
 from paraloop_core import design_checks as chk
 from paraloop_core.design_checks import MAX_LENGTH
-from paraloop_core.errors import DesignFileError
+from paraloop_core.errors import DesignFileError, shown, shown_key
 from paraloop_core.tolerance import TOL
 
 FORMAT = "paraloop-design"
@@ -116,8 +116,12 @@ class Design:
     evolution: dict[str, Any] = field(default_factory=dict)
     end_effector: EndEffectorSettings | None = None
     drive: DriveSettings = DriveSettings()
-    #: folder that relative paths in the design (the end-effector mesh) refer to; not saved
+    #: folder that relative paths in the design (the end-effector mesh) refer to, and folders
+    #: whose meshes it finds by file name besides the bundled ones (the studio's uploads);
+    #: not saved. A loaded design (base_dir set) finds its mesh only there
+    #: (:func:`mesh_file`); one built in Python (base_dir None) uses the path as given.
     base_dir: str | None = None
+    mesh_dirs: tuple[str, ...] = ()
 
     @property
     def pose_array(self) -> tuple[np.ndarray, np.ndarray]:
@@ -150,8 +154,8 @@ def _poses(v: Any, path: str, lo: int) -> tuple[Pose, ...]:
 
 def _choice(v: Any, path: str, options: tuple) -> Any:
     if not isinstance(v, (str, type(None))) or v not in options:
-        raise DesignFileError(path, f"must be one of {', '.join(map(repr, options))}, "
-                              f"got {chk.short(v)}")
+        raise DesignFileError(path, f"must be one of {', '.join(map(shown, options))}, "
+                              f"got {shown(v)}")
     return v
 
 
@@ -216,7 +220,7 @@ def _realization(v: Any, extent: float) -> RealizationSettings:
     fixed = {}
     for k, s in fixed_raw.items():
         if k not in ("0", "1", "2", "3", "4", "5"):
-            raise DesignFileError(f"realization.fixed.{chk.key(k)}",
+            raise DesignFileError(f"realization.fixed.{shown_key(k)}",
                                   "keys must be vertex indices \"0\"..\"5\"")
         fixed[int(k)] = chk.number(s, f"realization.fixed.{k}")
     return RealizationSettings(
@@ -240,15 +244,15 @@ def design_from_dict(data: Any) -> Design:
                "realization", "locked", "evolution", "end_effector", "drive"}
     chk.check_keys(d, allowed, "design")
     if d.get("format", FORMAT) != FORMAT:
-        raise DesignFileError("format", f"must be {FORMAT!r}, got {chk.short(d['format'])}")
+        raise DesignFileError("format", f"must be {shown(FORMAT)}, got {shown(d['format'])}")
     version = d.get("version", VERSION)
     if type(version) is not int or version != VERSION:
         raise DesignFileError("version", f"must be the integer {VERSION}, got "
-                              f"{chk.short(version)}")
+                              f"{shown(version)}")
     name = d.get("name", "untitled")
     if not isinstance(name, str) or len(name) > chk.MAX_NAME:
         raise DesignFileError("name", f"must be a string of at most {chk.MAX_NAME} characters, "
-                              f"got {chk.short(name)}")
+                              f"got {shown(name)}")
     if "poses" not in d:
         raise DesignFileError("poses", "missing")
     poses = _poses(d["poses"], "poses", chk.MIN_POSES)
@@ -266,7 +270,7 @@ def design_from_dict(data: Any) -> Design:
         loop=loop,
         realization=_realization(d.get("realization", {}), extent),
         locked=tuple(sorted(set(locked))),
-        evolution=_evolution(d.get("evolution", {}), len(poses)),
+        evolution=chk.evolution(d.get("evolution", {}), len(poses)),
         end_effector=_end_effector(d.get("end_effector")),
         drive=DriveSettings(**chk.drive(d.get("drive", {}))),
     )
@@ -283,7 +287,7 @@ def _end_effector(v: Any) -> EndEffectorSettings | None:
     if mesh is not None and not (isinstance(mesh, str) and 0 < len(mesh) <= chk.MAX_PATH
                                  and "\x00" not in mesh):
         raise DesignFileError("end_effector.mesh", f"must be a file path (1..{chk.MAX_PATH} "
-                              f"characters, no NUL), got {chk.short(mesh)}")
+                              f"characters, no NUL), got {shown(mesh)}")
     if shape is not None:
         _choice(shape, "end_effector.shape", ("disc", "panel"))
     ends = {}
@@ -295,25 +299,6 @@ def _end_effector(v: Any) -> EndEffectorSettings | None:
         mesh, shape, chk.positive(d.get("scale", 1.0), "end_effector.scale"),
         ends["L"], ends["R"],
         chk.positive(d.get("clearance"), "end_effector.clearance", allow_none=True))
-
-
-def _evolution(v: Any, n_poses: int) -> dict[str, Any]:
-    """Evolution settings stay JSON-native in the design; validated by building them once."""
-    # local: the evolution stack is heavy
-    from paraloop_core.motion.evolution import evolution_settings
-
-    d = dict(chk.obj(v, "evolution"))
-    try:
-        settings = evolution_settings(d)
-    except DesignFileError as exc:
-        msg = str(exc)[len(exc.field) + 2:]
-        raise DesignFileError(f"evolution.{exc.field}", msg) from exc
-    except (TypeError, ValueError) as exc:
-        raise DesignFileError("evolution", chk.short(str(exc)).strip("'\"")) from exc
-    if settings.four_pose_indices is not None and max(settings.four_pose_indices) >= n_poses:
-        raise DesignFileError("evolution.four_pose_indices",
-                              f"indices must be < the number of poses ({n_poses})")
-    return d
 
 
 def _pose_dict(p: Pose) -> dict[str, list[float]]:
@@ -369,21 +354,38 @@ def design_to_dict(design: Design) -> dict[str, Any]:
     }
 
 
-def load_design(path: str | Path) -> Design:
-    """Read and validate a design file (limits in :mod:`design_checks`); a bad file raises
-    DesignFileError (field ``file`` for unreadable, oversized, non-UTF-8 or non-JSON files)."""
-    design = design_from_dict(chk.parse_json(chk.read_text(path)))
-    base = Path(path).resolve().parent
+def load_design_bytes(data: bytes, *, base_dir: str | Path,
+                      mesh_dirs: tuple[str | Path, ...] = ()) -> Design:
+    """Parse and validate a design file's bytes, the one loader of the command line and the
+    studio's *Load design*: the limits of :mod:`design_checks` (size, nesting, number
+    literals, UTF-8 with an optional BOM, no duplicate keys), and an end-effector mesh that
+    :func:`mesh_file` finds inside ``base_dir`` (the design's folder), the bundled meshes or
+    ``mesh_dirs``. Raises DesignFileError (field ``file`` for the bytes themselves)."""
+    design = replace(design_from_dict(chk.parse_bytes(data)), base_dir=str(base_dir),
+                     mesh_dirs=tuple(map(str, mesh_dirs)))
+    mesh_file(design)  # refused now, not when solving
+    return design
+
+
+def load_design(path: str | Path, mesh_dirs: tuple[str | Path, ...] = (),
+                base_dir: str | Path | None = None) -> Design:
+    """Read a design file (a regular file within the size limit) and load it
+    (:func:`load_design_bytes`); relative paths inside it refer to ``base_dir``, by default
+    the file's folder (an autosave elsewhere gives its design's)."""
+    folder = Path(path).resolve().parent if base_dir is None else base_dir
+    return load_design_bytes(chk.read_bytes(path), base_dir=folder, mesh_dirs=mesh_dirs)
+
+
+def mesh_file(design: Design) -> str | None:
+    """The end-effector mesh file of ``design`` (None without one): for a loaded design
+    (``base_dir`` set) only inside its folder, the bundled meshes or ``mesh_dirs``
+    (:func:`design_checks.resolve_mesh`, DesignFileError otherwise); else the path as given."""
     ee = design.end_effector
-    if ee is not None and ee.mesh is not None:
-        try:
-            special = (base / ee.mesh).exists() and not (base / ee.mesh).is_file()
-        except OSError:  # e.g. a name too long: the mesh loader reports it
-            special = False
-        if special:
-            raise DesignFileError("end_effector.mesh", f"{chk.short(ee.mesh)} is not a regular "
-                                  "file")
-    return replace(design, base_dir=str(base))
+    if ee is None or ee.mesh is None:
+        return None
+    if design.base_dir is None:
+        return ee.mesh
+    return chk.resolve_mesh(ee.mesh, design.base_dir, design.mesh_dirs)
 
 
 def save_design(design: Design, path: str | Path) -> None:

@@ -14,8 +14,9 @@ from typing import Any
 import numpy as np
 
 from paraloop_core.algebra import dq, factor
-from paraloop_core.design import Design, check_pose_count
-from paraloop_core.errors import RealizationError
+from paraloop_core.design import Design, check_pose_count, mesh_file
+from paraloop_core.design_checks import design_field
+from paraloop_core.errors import ParaloopError, RealizationError
 from paraloop_core.linkage import loops, singularity
 from paraloop_core.motion import fourpose, metric
 from paraloop_core.result import result_to_dict
@@ -187,9 +188,15 @@ def solve(design: Design, *, realize: bool = True, other_loops: bool = True,
     sol = Solution(design, motion, monic, reference, pose_t, mu, facts, loops.nine_loops(facts),
                    s_min, s_t, fit=fit, unit=unit, loop_factors_unit=jf_u)
     if realize and design.realization.enabled:
-        warm = warm_realization(sol, hint, pattern)
-        sol = warm if warm is not None else _with_realization(sol, other_loops, quick_work,
-                                                              check)
+        try:
+            warm = warm_realization(sol, hint, pattern)
+            sol = warm if warm is not None else _with_realization(sol, other_loops, quick_work,
+                                                                  check)
+        except ParaloopError as exc:  # the user's own settings: name the field
+            field = design_field(exc.param, design)
+            if field is not None and not hasattr(exc, "field"):
+                exc.in_field(field)
+            raise
     return sol
 
 
@@ -383,13 +390,11 @@ def _with_realization(sol: Solution, other_loops: bool, quick_work: int | None =
 
 def attach_end_effector(sol: Solution) -> Any:
     """The design's end-effector polyhedron placed at the reference pose on the chosen loop."""
-    from pathlib import Path
-
     from paraloop_core.realization import endeffector as eem
 
     s = sol.design.end_effector
     if s.mesh is not None:
-        body = eem.scaled(eem.load_mesh(Path(sol.design.base_dir or ".") / s.mesh), s.scale)
+        body = eem.scaled(eem.load_mesh(mesh_file(sol.design)), s.scale)
     else:
         body = eem.builtin(s.shape, s.scale)
     return eem.attach(body, sol.reference, sol.loop.joint_factors, s.L, s.R)

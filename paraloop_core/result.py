@@ -6,12 +6,16 @@ pipeline imports this module).
 
 from __future__ import annotations
 
+import math
+import os
+import tempfile
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from paraloop_core.algebra import factor
+from paraloop_core.errors import NumericalError
 
 RESULT_FORMAT = "paraloop-result"
 RESULT_VERSION = 1
@@ -21,8 +25,11 @@ def _t_json(t: float) -> float | None:
     return None if np.isinf(t) else float(t)
 
 
-def result_to_dict(sol: Any) -> dict[str, Any]:
-    """The result JSON (see ``docs/result-format.md``)."""
+def result_to_dict(sol: Any, drive: bool | None = None) -> dict[str, Any]:
+    """The result JSON (see ``docs/result-format.md``). ``drive``: include the drive plan of
+    the chosen loop (True), leave it out (False), or include it when the design asks for one,
+    i.e. its ``drive`` settings are not the defaults (None). The plan costs a few ms, about
+    twice the rest of a solve, so results of designs that never mention a drive skip it."""
     facts = sol.factorizations
     labels = "ABC"
     out: dict[str, Any] = {
@@ -76,34 +83,90 @@ def result_to_dict(sol: Any) -> dict[str, Any]:
         from paraloop_core.realization import ee_certificate
 
         out["end_effector"] = ee_certificate.ee_to_dict(sol.end_effector)
-    from paraloop_core.linkage import drive_plan
+    if drive or (drive is None and _asks_for_drive(sol.design.drive)):
+        from paraloop_core.linkage import drive_plan
 
-    try:  # the chosen loop in design units, base link resting; never fails a solve
-        out["drive"] = drive_plan.plan_to_dict(drive_plan.plan_drive(
-            sol.loop.joint_factors, sol.design.drive, resting_link=0))
-    except (ValueError, RuntimeError) as exc:  # RuntimeError: a limit check failed (a bug)
-        out["drive"] = {"error": str(exc)}
+        try:  # the chosen loop in design units, base link resting; never fails a solve
+            out["drive"] = drive_plan.plan_to_dict(drive_plan.plan_drive(
+                sol.loop.joint_factors, sol.design.drive, resting_link=0))
+        except (ValueError, RuntimeError) as exc:  # RuntimeError: a limit check failed (a bug)
+            out["drive"] = {"error": str(exc)}
     return out
 
 
-def save_result(sol: Any, path: str | Path) -> None:
-    """Write the result JSON of ``sol`` to ``path`` atomically (strict JSON: no NaN/Infinity)."""
-    write_json_atomic(Path(path), result_to_dict(sol))
+def _asks_for_drive(settings: Any) -> bool:
+    """Whether drive settings differ from the defaults (``design.DriveSettings()``; compared
+    field by field: design is above this module)."""
+    return type(settings)() != settings
+
+
+def save_result(sol: Any, path: str | Path, drive: bool | None = None) -> None:
+    """Write the result JSON of ``sol`` (``drive`` as :func:`result_to_dict`) to ``path``
+    atomically (strict JSON: no NaN/Infinity)."""
+    write_json_atomic(Path(path), result_to_dict(sol, drive))
 
 
 def write_json_atomic(path: Path, data: dict[str, Any]) -> None:
-    """Strict JSON (``ValueError`` on NaN/inf) to a temporary file beside ``path``, then a rename:
-    a failure never leaves a half-written file or the temporary behind."""
+    """Strict JSON to a temporary file beside ``path``, then a rename: a failure never leaves a
+    half-written file or the temporary behind. A NaN or infinite value raises NumericalError
+    naming where it is (and writes nothing)."""
     import json
-    import os
-    import tempfile
 
-    text = json.dumps(data, indent=1, allow_nan=False) + "\n"
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        text = json.dumps(data, indent=1, allow_nan=False) + "\n"
+    except ValueError:
+        raise_non_finite(data)
+        raise
+    fd, tmp = temp_file(path.parent, path.name)
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as f:
             f.write(text)
         os.replace(tmp, path)
     except BaseException:
-        Path(tmp).unlink(missing_ok=True)
+        tmp.unlink(missing_ok=True)
         raise
+
+
+def raise_non_finite(data: Any, where: str = "result") -> None:
+    """Raise NumericalError naming the first NaN or infinite number in JSON-like ``data``
+    (nested dicts and lists); return when there is none."""
+    stack = [(where, data)]
+    while stack:
+        path, node = stack.pop()
+        if isinstance(node, dict):
+            stack.extend((f"{path}.{k}", v) for k, v in node.items())
+        elif isinstance(node, (list, tuple)):
+            stack.extend((f"{path}[{i}]", v) for i, v in enumerate(node))
+        elif isinstance(node, float) and not math.isfinite(node):
+            raise NumericalError(f"{path} is {node} (float64 broke down on this design; "
+                                 "please report it with the design file to the paraloop "
+                                 "issue tracker)")
+
+
+def temp_file(folder: Path, name: str) -> tuple[int, Path]:
+    """A new temporary file ``.<name>.*.tmp`` in ``folder`` (descriptor, path), with the mode
+    a plain ``open`` would give (0666 less the umask), not ``mkstemp``'s 0600: renamed into
+    place it is the file the user expects."""
+    fd, tmp = tempfile.mkstemp(prefix=f".{name[:100]}.", suffix=".tmp", dir=folder)
+    try:
+        os.fchmod(fd, 0o666 & ~_umask())
+    except BaseException:
+        os.close(fd)
+        os.unlink(tmp)
+        raise
+    return fd, Path(tmp)
+
+
+def _umask() -> int:
+    """The process umask, read without changing it where Linux tells it (``os.umask`` sets it
+    for a moment, which another thread creating a file would see)."""
+    try:
+        with open("/proc/self/status", encoding="ascii", errors="replace") as f:
+            for line in f:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError):
+        pass
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask

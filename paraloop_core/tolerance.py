@@ -20,6 +20,11 @@ class Tolerance:
     singular: float = 1e-9
     #: |p| / (1 + |h|) below which a linear factor counts as a translation.
     translation: float = 1e-9
+    #: |p| / |h_primal| of a joint factor (its norm root's distance from the real line over
+    #: its size) below which float64 cannot evaluate the joint near its half turn: the norm
+    #: ``(t - h0)^2 + |p|^2`` loses |p|^2 within ~100 eps of h0^2 (random generic designs:
+    #: >= 6e-6), and the loop's axes there are rounding noise.
+    resolved: float = 1e-7
     #: relative residual of products / Study condition accepted as exact.
     residual: float = 1e-7
     #: smallest / largest singular value of four relative poses (unit dual quaternions, dual

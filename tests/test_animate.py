@@ -8,6 +8,7 @@ import json
 import struct
 from pathlib import Path
 
+import fab_fixtures as F
 import numpy as np
 import pytest
 import trimesh
@@ -15,7 +16,7 @@ import trimesh
 from app.cli.main import main
 from app.exports import animation_keyframes
 from paraloop_core import design as design_mod
-from paraloop_core import pipeline
+from paraloop_core import pipeline, printed
 from paraloop_core.algebra import dq
 from paraloop_core.design import DriveSettings
 from paraloop_core.fabrication import animate
@@ -108,10 +109,12 @@ def check_motion(data: bytes, jf: np.ndarray, points: np.ndarray, radius: float,
     assert len(anim) == 6 and sorted(anim) == sorted(root["children"])
     size = float(np.ptp(points, axis=0).max())
     centre = np.array(doc["asset"]["extras"]["centre"])
-    # the root: rotation Z-up -> Y-up, then the centre (in glTF axes)
-    root_rot = rotation(root["rotation"])
+    # the root: the centre, then Z-up -> Y-up (one matrix, glTF's column-major order)
+    root_m = np.array(root["matrix"], float).reshape(4, 4).T
+    assert np.array_equal(root_m[3], [0.0, 0.0, 0.0, 1.0])
+    root_rot, root_tr = root_m[:3, :3], root_m[:3, 3]
     assert np.allclose(root_rot, Z_TO_Y, atol=1e-12)
-    root_tr = np.array(root["translation"])
+    assert np.allclose(root_tr, Z_TO_Y @ centre, rtol=1e-12, atol=1e-12 * size)
     uniform = t is None
     if uniform:
         t = uniform_t(jf, frames)
@@ -300,3 +303,77 @@ def test_cli_not_realized_exit_3(tmp_path, capsys, monkeypatch):
     assert len(err) == 1 and "no collision-free realization" in err[0]
     assert "no luck at all" in err[0]  # the reason, on the same line
     assert not out.exists()
+
+
+# --- the printed parts (printed.animation, paraloop animate --printed) ----------------------
+
+
+def test_printed_parts_animation_follows_the_kinematics():
+    """The printed loop's animation: six animated link nodes holding every built part and
+    piece of hardware (mm), the grounded link still, every node at each keyframe where the
+    loop's link poses (relative to the grounded link) put it, the whole standing on its
+    table: root = Z-up to Y-up o world_from_home o the centre."""
+    pr = F.printed()
+    asm, g = pr.assembly, pr.base.link
+    frames, seconds = 9, 3.0
+    glb, how = printed.animation(pr, DriveSettings(), frames, seconds)
+    doc, blob = read_glb(glb)
+    extras = doc["asset"]["extras"]
+    assert extras["resting_link"] == g and "millimetres" in extras["units"]
+    assert extras["frames"] == frames and extras["seconds"] == seconds
+    nodes = doc["nodes"]
+    (root_index,) = doc["scenes"][doc["scene"]]["nodes"]
+    root = nodes[root_index]
+    anim = animated(doc, blob)
+    assert len(anim) == 6 and sorted(anim) == sorted(root["children"])
+    centre = np.array(extras["centre"])
+    shift = np.eye(4)
+    shift[:3, 3] = centre
+    z_to_y = np.eye(4)
+    z_to_y[:3, :3] = Z_TO_Y
+    root_m = np.array(root["matrix"], float).reshape(4, 4).T
+    world = pr.base.world_from_home()
+    assert np.allclose(root_m, z_to_y @ world @ shift, atol=1e-9)
+    # the keyframes' parameters: the design's drive with the grounded link resting
+    plan = drive_plan.plan_drive(asm.joint_factors, DriveSettings(), resting_link=g)
+    assert f"motor joint {plan.motor}" in how
+    if plan.schedule is not None:
+        t = animate.scheduled_parameters(asm.joint_factors, plan.schedule, frames)
+    else:
+        t = animate.motor_parameters(asm.joint_factors, plan.motor,
+                                     np.linspace(0.0, 2 * np.pi, frames))
+    poses = dq.to_matrix(loops.link_poses(asm.joint_factors, t))
+    poses[..., :3, 3] *= asm.scale
+    rel = np.linalg.inv(poses[:, g, None]) @ poses  # (frames, 6, 4, 4), mm
+    size = float(np.ptp(asm.bars[0].reshape(-1, 3), axis=0).max())
+    for link in range(6):
+        index = next(i for i in root["children"] if nodes[i]["name"] == f"link_{link}")
+        keys = anim[index]
+        if link == g:  # the grounded link stands still
+            assert np.allclose(keys["translation"], 0.0, atol=1e-6 * size)
+            assert np.allclose(np.abs(keys["rotation"][:, 3]), 1.0, atol=1e-6)
+        # the node's meshes: the link's parts and hardware, stored relative to the centre
+        prims = doc["meshes"][nodes[index]["mesh"]]["primitives"]
+        verts = np.concatenate([accessor(doc, blob, p["attributes"]["POSITION"])
+                                for p in prims]) + centre
+        solids = [p.manifold for p in asm.parts if p.link == link]
+        solids += [h.solid for h in asm.hardware if h.link == link]
+        assert len(prims) == len(solids)
+        home = np.concatenate([F.mesh_of(s).vertices for s in solids])
+        assert np.allclose(verts.min(0), home.min(0), atol=1e-4) and \
+            np.allclose(verts.max(0), home.max(0), atol=1e-4)
+        probe = home[:: max(1, len(home) // 20)]
+        local = np.einsum("kab,pb->kpa", rotation(keys["rotation"]), probe - centre) + \
+            keys["translation"][:, None]
+        shown = np.einsum("ab,kpb->kpa", root_m[:3, :3], local) + root_m[:3, 3]
+        want = np.einsum("kab,pb->kpa", rel[:, link, :3, :3], probe) + rel[:, link, None, :3, 3]
+        want = np.einsum("ab,kpb->kpa", (z_to_y @ world)[:3, :3], want) + (z_to_y @ world)[:3, 3]
+        assert np.abs(shown - want).max() < 1e-4 * size, link
+
+
+def test_cli_animates_the_printed_loop(tmp_path, capsys):
+    out = tmp_path / "printed.glb"
+    assert main(["animate", str(TV8), "--printed", "--out", str(out), "--frames", "5"]) == 0
+    assert "the printed parts" in capsys.readouterr().out
+    doc, blob = read_glb(out.read_bytes())
+    assert "millimetres" in doc["asset"]["extras"]["units"] and len(animated(doc, blob)) == 6

@@ -7,9 +7,9 @@ import functools
 import numpy as np
 import pytest
 import trimesh
+from fab_fixtures import example_loop
 from scipy import ndimage
 from scipy.spatial import cKDTree
-from test_parts import example_loop
 
 from paraloop_core.algebra import dq, poly
 from paraloop_core.errors import FabricationError

@@ -133,10 +133,10 @@ def test_unreadable_files(tmp_path):
         (["evolution"], {"seed": 2.5}, "evolution.seed", "integer"),
         (["evolution"], {"workers": 2.5}, "evolution.workers", "1..256"),
         (["evolution"], {"max_iterations": 2.5}, "evolution.max_iterations", "integer"),
-        (["evolution"], {"foo": 1}, "evolution.foo", "unknown key 'foo' at evolution"),
+        (["evolution"], {"foo": 1}, "evolution.foo", 'unknown key "foo" at evolution'),
         (["evolution"], {"starts": 1000, "max_iterations": 10000}, "evolution.max_iterations",
          "budget"),
-        (["realization", "foo"], 1, "realization.foo", "unknown key 'foo' at realization"),
+        (["realization", "foo"], 1, "realization.foo", 'unknown key "foo" at realization'),
         (["name"], "x" * 2000, "name", "1000"),
         (["poses"], [TV8["poses"][0]] * 1001, "poses", "4..1000"),
         (["inertia", "weight"], 1e9, "inertia.weight", "1e+06"),
@@ -168,8 +168,8 @@ def test_deep_nesting_is_refused_not_recursion(tmp_path):
 @pytest.mark.parametrize("text, words", [
     ('{"poses": NaN}', "NaN is not valid JSON"),
     ('{"poses": -Infinity}', "-Infinity is not valid JSON"),
-    ('{"poses": 1' + "0" * 5000 + "}", "integer literal"),
-    ('{"name": "a", "name": "b"}', "duplicate key 'name'"),
+    ('{"poses": 1' + "0" * 5000 + "}", "number literal"),
+    ('{"name": "a", "name": "b"}', 'duplicate key "name"'),
     (b"\xff\xfe{}", "not UTF-8"),
 ])
 def test_strict_json(tmp_path, text, words):
@@ -252,7 +252,7 @@ def test_drive_settings_round_trip_and_defaults(tmp_path):
     ({"max_accel_rad_s2": 0}, "drive.max_accel_rad_s2", "(0, 1e+09]"),
     ({"max_accel_rad_s2": float("inf")}, "drive.max_accel_rad_s2", "finite"),
     ({"density_kg_m3": 0.5}, "drive.density_kg_m3", "[1, 100000]"),
-    ({"torque": 1}, "drive.torque", "unknown key 'torque' at drive (allowed: cycle_time_s"),
+    ({"torque": 1}, "drive.torque", 'unknown key "torque" at drive (allowed: cycle_time_s'),
     (None, "drive", "must be an object"),
 ], ids=lambda v: str(v)[:24])
 def test_drive_errors_name_field_and_range(drive, field, words):

@@ -110,7 +110,10 @@ def test_constant_speed_mean_speed_and_exact_peaks():
             dense = drive.constant_speed(jf, m, ct, theta=theta)
             brute = np.abs(dense.velocity).max(0) / (2 * np.pi / ct)
             assert np.all(brute <= cs.peak_speed_ratio * (1 + 1e-9))
-            assert np.all(np.abs(dense.acceleration).max(0) <= cs.peak_accel * (1 + 1e-9))
+            # a joint twinned with the motor (same norm root) has g' = 0: rounding noise of
+            # 1e-23 of the largest peak, so the slack is relative to that one
+            assert np.all(np.abs(dense.acceleration).max(0)
+                          <= cs.peak_accel * (1 + 1e-9) + 1e-12 * cs.peak_accel.max())
 
 
 def test_recommend_motor_rule_and_penalty():

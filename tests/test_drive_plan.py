@@ -210,3 +210,18 @@ def test_result_json_has_the_drive_section_and_never_fails_on_it():
     bad = replace(sol, design=replace(sol.design, drive=DriveSettings(cycle_time_s=-1.0)))
     assert pipeline.result_to_dict(bad)["drive"] == {
         "error": "cycle_time_s must be a positive finite number, got -1.0"}
+
+
+def test_result_json_has_the_drive_plan_when_asked():
+    """Designs whose drive settings are the defaults get no drive plan unless asked (it costs
+    about twice the rest of the solve); ``drive=True`` adds it, ``drive=False`` drops it."""
+    d = design.load_design(DESIGNS / "tv8.json")
+    assert d.drive == DriveSettings()
+    sol = pipeline.solve(d, realize=False)
+    assert "drive" not in pipeline.result_to_dict(sol)
+    full = pipeline.result_to_dict(sol, drive=True)["drive"]
+    assert full == drive_plan.plan_to_dict(drive_plan.plan_drive(sol.loop.joint_factors,
+                                                                 DriveSettings()))
+    asked = replace(sol, design=replace(d, drive=DriveSettings(cycle_time_s=10.5)))
+    assert "drive" in pipeline.result_to_dict(asked)
+    assert "drive" not in pipeline.result_to_dict(asked, drive=False)

@@ -124,7 +124,25 @@ def test_start_at_solution_skips_initial_stage_and_order_failure_falls_back():
         assert stages.cyclic_order(t) != 0
 
 
+def dense_gap_arcs(c, t, direction, inertia, samples=20000):
+    """Metric arc ``(m-1,)`` from the closest pose of target i to that of target i+1 walking
+    the cycle of ``c`` in ``direction``: chord sum over ``samples`` parameters of the gap (20x
+    finer than :func:`stages.loop_gaps`; chord sums grow towards the arc as they refine)."""
+    u = poly.t_to_param(t)
+    out = []
+    for a, b in zip(u[:-1], u[1:], strict=True):
+        span = np.mod(direction * (b - a), 1.0)
+        uu = np.mod(a + direction * span * np.linspace(0.0, 1.0, samples), 1.0)
+        poses = poly.evaluate_pose(c, poly.param_to_t(uu))
+        out.append(np.sum(np.sqrt(metric.distance_sq(poses[:-1], poses[1:], inertia))))
+    return np.array(out)
+
+
 def test_loop_phenomenon_detected_and_straightened():
+    """Targets on a loop-free cubic; random starts (eq. 9) until one converges onto a motion
+    showing the loop phenomenon (Fig. 17) that the modified procedure straightens. Which starts
+    loop depends on rounding (BLAS kernels), so the test searches instead of naming a start;
+    the loops found are checked against an independent dense arc length."""
     rng = np.random.default_rng(5)
     p, m = rng.normal(size=(2, 3, 3))
     m -= np.sum(p * m, 1, keepdims=True) / np.sum(p * p, 1, keepdims=True) * p
@@ -134,17 +152,45 @@ def test_loop_phenomenon_detected_and_straightened():
     assert stages.loop_gaps(poly.from_factors(h), t_true, 1, targets, SPHERE, 3.0) == ()
     settings = evolution.EvolutionSettings(max_iterations=60, loop_fix=True, virtual=1)
     prob = evolution.Problem(targets, targets, np.arange(10), SPHERE, 1.0)
-    r = np.random.default_rng([0, 15]).normal(size=(3, 4))  # start 15 of seed 0 loops
-    looped = stages.evolve_start(prob, settings, np.c_[r, np.zeros((3, 4))], 15)
-    assert looped.loops == (2,), "expected the loop phenomenon from this start"
     guides, real = evolution.with_virtual_targets(targets, SPHERE, 1)
     assert guides.shape == (19, 8) and np.all(guides[real] == targets)
     fix = evolution.Problem(targets, guides, real, SPHERE, 1.0)
-    fixed = evolution._straighten(prob, fix, settings, looped)
-    assert fixed.loop_fixed and fixed.loops == () and fixed.status in ("converged", "stalled")
-    assert "loop-fix" in fixed.stage_history
-    assert len(fixed.cost_history) > len(looped.cost_history)  # histories are joined
-    assert fixed.cost_history[-1] < looped.cost_history[-1]
+    chords = np.sqrt(metric.distance_sq(targets[:-1], targets[1:], SPHERE))
+    looped_seen, clean_seen = 0, 0
+    for start in range(40):
+        r = np.random.default_rng([0, start]).normal(size=(3, 4))
+        res = stages.evolve_start(prob, settings, np.c_[r, np.zeros((3, 4))], start)
+        if res.status not in ("converged", "stalled"):
+            continue
+        c = evolution.evolve_motion(res)
+        t, _ = closest.closest_pose(c, targets, SPHERE, robust=False)
+        t[0] = np.inf
+        ratio = dense_gap_arcs(c, t, int(stages.cyclic_order(t)) or 1, SPHERE) / chords
+        # detection agrees with the finer arcs (2 % slack for its coarser chord sums)
+        assert np.all(ratio[list(res.loops)] > 3.0 * 0.999)
+        assert np.all(np.delete(ratio, list(res.loops)) < 3.0 * 1.02)
+        clean_seen += not res.loops
+        if not res.loops:
+            continue
+        looped_seen += 1
+        fixed = evolution._straighten(prob, fix, settings, res)
+        if not fixed.loop_fixed:  # no loop-free motion from this start: left as it was
+            assert fixed is res
+            continue
+        assert fixed.loops == () and fixed.status in ("converged", "stalled")
+        assert "loop-fix" in fixed.stage_history and fixed.stage_history[:len(
+            res.stage_history)] == res.stage_history  # histories are joined
+        assert fixed.cost_history[:len(res.cost_history)] == res.cost_history
+        assert len(fixed.cost_history) > len(res.cost_history)
+        c = evolution.evolve_motion(fixed)
+        t, _ = closest.closest_pose(c, targets, SPHERE, robust=False)
+        t[0] = np.inf
+        ratio = dense_gap_arcs(c, t, int(stages.cyclic_order(t)) or 1, SPHERE) / chords
+        assert np.all(ratio < 3.0 * 1.02)
+        break
+    else:
+        pytest.fail(f"no straightened loop in 40 starts ({looped_seen} looped)")
+    assert clean_seen > 0  # detection is not simply always on
 
 
 def test_interpolate_poses_endpoints_and_midpoint():

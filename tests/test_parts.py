@@ -1,199 +1,242 @@
-"""Printable parts: watertight manifolds, pins in bores with the clearance, refused parameters."""
+"""The printed parts (:mod:`fabrication.parts`, built by :mod:`assembly`): valid one-piece
+solids inside their capsules, flat on the bed, bores with their walls, plain bores and
+flat faces for the hardware outside, joints that turn without touching."""
 
 from __future__ import annotations
 
-import functools
-
+import fab_fixtures as F
+import manifold3d as m3d
 import numpy as np
 import pytest
-import trimesh
-from conftest import random_rotation_factors
 
-from paraloop_core.algebra import dq, factor, poly
 from paraloop_core.errors import FabricationError
-from paraloop_core.fabrication import parts
-from paraloop_core.linkage import loops
-from paraloop_core.realization import realize
+from paraloop_core.fabrication import check, flat, layout, parts, profiles, sizing, stiffness
+from paraloop_core.fabrication.assembly import Assembly
+
+ASSEMBLIES = ["m3", "printed-pin", "grounded"]
 
 
-@functools.lru_cache(maxsize=1)
-def example_loop() -> tuple[np.ndarray, np.ndarray, float]:
-    """A realized loop ``(joint_factors, points, radius)`` of a random generic cubic, rotated
-    so that its base link's axis A_0 points down (the grounding column goes there)."""
-    c = poly.from_factors(random_rotation_factors(np.random.default_rng(1)))
-    jf = loops.loop_joint_factors(factor.all_factorizations_batch(c).factors)[4]
-    r = realize.realize(jf, d_fraction=0.08, rho_fraction=0.25)
-    d = r.points[1] - r.points[2]
-    d /= np.linalg.norm(d)
-    axis = np.cross(d, [0.0, 0.0, -1.0])
-    g = dq.rotation_about_line(axis / np.linalg.norm(axis), np.zeros(3),
-                               np.arccos(np.clip(-d[2], -1.0, 1.0)))
-    jf2 = dq.mul(dq.mul(g, r.joint_factors), dq.conj(g))
-    return jf2, dq.transform_points(g, r.points), r.radius
+def assembly_of(which: str) -> Assembly:
+    return F.printed().assembly if which == "grounded" else F.assembly(which)
 
 
-@functools.lru_cache(maxsize=2)
-def example_assembly(print_in_place: bool = False) -> parts.Assembly:
-    jf, pts, radius = example_loop()
-    return parts.build_assembly(jf, pts, radius, parts.PartSpec(print_in_place=print_in_place))
+def polygon_error(radius: float) -> float:
+    """How far inside its radius a round solid's polygon (parts.SEGMENTS sides) reaches."""
+    return radius * (1.0 - np.cos(np.pi / parts.SEGMENTS))
 
 
-def as_trimesh(man) -> trimesh.Trimesh:
-    mesh = man.to_mesh()
-    return trimesh.Trimesh(mesh.vert_properties[:, :3], mesh.tri_verts, process=True)
-
-
-@pytest.mark.parametrize("pip", [False, True])
-def test_parts_are_watertight_manifolds(pip):
-    asm = example_assembly(pip)
-    assert len(asm.parts) == 6
+@pytest.mark.parametrize("which", ASSEMBLIES)
+def test_parts_are_valid_watertight_one_piece_solids(which):
+    asm = assembly_of(which)
+    roles = [p.role for p in asm.parts]
+    assert roles[:6] == ["link"] * 6 and [p.link for p in asm.links] == list(range(6))
+    if which == "printed-pin":
+        assert roles.count("pin") == 6 and roles.count("cap") == 6
+    if which == "grounded":
+        assert roles.count("base") == 1 and roles.count("cap") == 1  # the plate, the rod cap
     for p in asm.parts:
-        assert p.manifold.status() == parts.m3d.Error.NoError
-        tm = as_trimesh(p.manifold)
-        assert tm.is_watertight and tm.is_winding_consistent, p.name
-        assert tm.volume > 0
-        # each part lies in the union of its bounding capsules (broad phase of verification)
-        v = tm.vertices
-        d = np.min([parts.point_segment_distance(v, c[0], c[1]) - r
-                    for c, r in zip(p.capsules, p.radii, strict=True)], axis=0)
-        assert d.max() <= 1e-3
+        assert p.manifold.status() == m3d.Error.NoError and not p.manifold.is_empty()
+        tm = F.mesh_of(p.manifold)
+        assert tm.is_watertight and tm.is_winding_consistent and tm.volume > 0, p.name
+        assert len(p.manifold.decompose()) == 1, p.name
+        assert not parts.pinched(p.manifold), p.name
 
 
-@pytest.mark.parametrize("pip", [False, True])
-def test_pins_fit_bores_with_clearance(pip):
-    asm = example_assembly(pip)
-    spec = asm.spec
-    poly_err = (spec.pin_radius_mm + spec.clearance_mm) * (1 - np.cos(np.pi / spec.segments))
-    for j, z in enumerate(asm.zones):
-        lo, up = asm.parts[j], asm.parts[(j + 1) % 6]
-        # the pin of the lower link reaches through the upper link's boss (without
-        # print-in-place into a blind bore, to 2 c short of its far end) ...
-        tip = z.length + spec.boss_length_mm - (0.0 if pip else 2 * spec.clearance_mm)
-        boss_up = parts.cylinder(z.at(z.length / 2 + spec.clearance_mm), z.at(tip - 1e-3),
-                                 spec.pin_radius_mm * 0.99, spec.segments)
-        assert (lo.manifold ^ boss_up).volume() == pytest.approx(boss_up.volume(), rel=1e-3)
-        # ... without touching it: the gap is the clearance (up to the polygon error)
-        gap = lo.manifold.min_gap(up.manifold, 5.0)
-        assert spec.clearance_mm - poly_err - 1e-6 <= gap <= spec.clearance_mm + 1e-6
-        assert (lo.manifold ^ up.manifold).volume() < 1e-9
+@pytest.mark.parametrize("which", ASSEMBLIES)
+def test_every_vertex_lies_in_its_capsules(which):
+    """The verification's broad phase takes each part (and piece of hardware) to lie in the
+    union of its capsules: no vertex outside by more than float32 rounding."""
+    asm = assembly_of(which)
+    solids = [(p.name, p.manifold, p.capsules, p.radii) for p in asm.parts]
+    solids += [(h.role, h.solid, h.capsule[None], np.array([h.radius])) for h in asm.hardware]
+    for name, solid, caps, radii in solids:
+        v = F.mesh_of(solid).vertices
+        out = np.min([F.point_segment(v, c[0], c[1]) - r for c, r in zip(caps, radii,
+                                                                         strict=True)], axis=0)
+        assert out.max() <= F.float32_slack(v), name
 
 
-def test_rotated_parts_stay_clear_at_joint():
-    """Turning a joint keeps the pin in its bore: the hardware is a solid of revolution."""
-    asm = example_assembly(False)
-    z = asm.zones[2]
-    lo, up = asm.parts[2], asm.parts[3]
-    for angle in (0.4, 1.7, 3.0):
-        turn = dq.to_matrix(dq.rotation_about_line(z.w, z.origin, angle))
-        moved = up.manifold.transform([list(r) for r in turn[:3]])
-        w = parts.zone_solid(z, asm.spec.segments)
-        assert (lo.manifold ^ w ^ moved).volume() < 1e-9
+@pytest.mark.parametrize("which", ["m3", "grounded"])
+def test_print_flat_is_the_lowest_face(which):
+    """Each link is cut at its bar's down face, or deeper by :func:`flat.lift` where a bore
+    needs it: no material beyond that plane, the faces on it face the bed, and laid on the
+    bed they are where it stands: at least the bar's face, or the bosses' cut faces."""
+    asm = assembly_of(which)
+    for p in asm.links:
+        i = p.link
+        r = float(asm.plan.radii[i])
+        bar = asm.bars[i]
+        level = float(np.max(bar.reshape(-1, 3) @ p.down)) + r * np.sqrt(3) / 2
+        level += flat.lift(asm.slack[i])
+        tm = F.mesh_of(p.manifold)
+        h = tm.vertices @ p.down
+        assert h.max() == pytest.approx(level, abs=F.float32_slack(tm.vertices))
+        on = (tm.triangles @ p.down).min(axis=1) > level - 1e-4
+        face = tm.area_faces[on].sum()
+        assert np.all(tm.face_normals[on] @ p.down > 0.99)
+        length = float(np.linalg.norm(bar[0][1] - bar[0][0]))
+        if asm.slack[i] >= 0:
+            assert face >= r * length * 0.9  # a hexagon's side is its corner radius
+        else:  # on the bosses' cut faces: each keeps at least a wall's width
+            assert face >= asm.printer.wall_mm ** 2, (p.name, face)
+        rot = layout.to_bed(p.down)
+        laid = tm.vertices @ rot[:3, :3].T
+        assert laid[:, 2].min() == pytest.approx(-level, abs=F.float32_slack(tm.vertices))
+        assert layout.contact_area(tm, rot) == pytest.approx(face, rel=1e-5)
 
 
-def test_scale_sets_longest_extent():
-    jf, pts, radius = example_loop()
-    s = parts.design_scale(pts, 200.0)
-    assert np.ptp(pts * s, axis=0).max() == pytest.approx(200.0)
+def _sides(asm: Assembly, i: int):
+    """Link i's joints: ``(joint, upper side)``."""
+    return [(asm.joints[i], False), (asm.joints[(i - 1) % 6], True)]
 
 
-@pytest.mark.parametrize("kwargs", [
-    {"clearance_mm": -0.1}, {"size_mm": 0.0}, {"size_mm": -5.0},
-    {"pin_radius_mm": 50.0}, {"rho_mm": 0.0}, {"boss_length_mm": -1.0}, {"segments": 3},
-])
-def test_bad_parameters_refused(kwargs):
-    jf, pts, radius = example_loop()
-    with pytest.raises(FabricationError) as err:
-        parts.build_assembly(jf, pts, radius, parts.PartSpec(**kwargs))
-    assert err.value.reason == "bad-parameters"
-    assert isinstance(err.value, ValueError)
+def _radial(j, phi: np.ndarray) -> np.ndarray:
+    a = np.cross(j.w, [1.0, 0, 0] if abs(j.w[0]) < 0.9 else [0, 1.0, 0])
+    a /= np.linalg.norm(a)
+    b = np.cross(j.w, a)
+    return np.cos(phi)[:, None] * a + np.sin(phi)[:, None] * b
 
 
-def test_too_small_size_says_what_to_do():
-    jf, pts, radius = example_loop()
-    with pytest.raises(FabricationError, match="size of at least"):
-        parts.build_assembly(jf, pts, radius, parts.PartSpec(size_mm=10.0))
+@pytest.mark.parametrize("which", ASSEMBLIES)
+def test_bores_keep_the_profile_wall(which):
+    """Rays from the axis across each bore's held length, every 22.5 deg
+    and straight towards the print flat: the bore is clear to its radius, and the material
+    around it is at least the printer's wall thick."""
+    asm = assembly_of(which)
+    wall = asm.printer.wall_mm
+    for p in asm.links:
+        tris = F.mesh_of(p.manifold).triangles
+        for j, upper in _sides(asm, p.link):
+            s0, s1 = j.upper if upper else j.lower
+            held = (s0, s1)
+            bore = j.bore[1 if upper else 0]
+            down = p.down - (p.down @ j.w) * j.w
+            dirs = np.vstack([_radial(j, np.arange(16) * np.pi / 8 + 0.0123),
+                              down / np.linalg.norm(down)])
+            for s in np.linspace(held[0] + 0.02, held[1] - 0.02, 5):
+                for d in dirs:
+                    hits = F.ray_hits(tris, j.at(s), d)
+                    assert hits[0] >= bore - polygon_error(bore) - 1e-4, (p.name, j.index)
+                    assert hits[1] - hits[0] >= wall - polygon_error(j.boss_radius) - 1e-4, (
+                        p.name, j.index, s, hits[:2])
 
 
-def _lean_points(lean_lower: bool) -> np.ndarray:
-    """A polyline whose joint 0 pin runs from E_0 = (0,0,0) to S_1 = (0,0,10) (mm): link 1's
-    bar leans back from S_1 over the pin, link 0's bar leans away or (``lean_lower``) over it."""
-    s0 = [0.0, -30.0, 16.0] if lean_lower else [0.0, -30.0, -20.0]
-    # the other bars leave their pins at right angles
-    return np.array([s0, [0, 0, 0], [0, 0, 10], [7, 0, 0], [60, 0, 2], [60, 30, 2],
-                     [60, 60, 2], [30, 60, 2], [0, 60, 2], [0, 90, 2], [-30, 90, 2],
-                     [-30, 0, 2]], float)
+def test_screw_bores_run_plain_to_faces_the_washers_bear_on():
+    """Screw joints: the hardware sits outside the bosses, so each bore is plain to the boss's
+    outer face (no counterbore or nut trap) and that face is where the material ends along
+    the axis, all round the bore (the washer under the head or the nut bears on it)."""
+    asm = F.assembly("m3")
+    phi = np.arange(24) * np.pi / 12 + 0.0123
+    for j in asm.joints:
+        lower, upper = asm.parts[j.index], asm.parts[(j.index + 1) % 6]
+        for part, upper_side in ((lower, False), (upper, True)):
+            tris = F.mesh_of(part.manifold).triangles
+            bore = j.bore[1 if upper_side else 0]
+            face = j.upper[1] if upper_side else j.lower[0]
+            out = j.w if upper_side else -j.w
+            for s in (face - 0.3 * out @ j.w, 0.5 * sum(j.upper if upper_side else j.lower)):
+                first = np.array([F.ray_hits(tris, j.at(s), d)[0] for d in _radial(j, phi)])
+                assert bore - polygon_error(bore) - 1e-4 <= first.min(), (part.name, j.index)
+                assert first.max() <= bore + 1e-4, (part.name, j.index, s)
+            ring = bore + 0.5 * asm.printer.wall_mm  # inside what the print flat keeps
+            for d in _radial(j, phi[::3]):
+                start = j.at(face) - 0.5 * out + ring * d  # inside the wall, under the face
+                assert F.ray_hits(tris, start, out)[0] == pytest.approx(0.5, abs=1e-3), (
+                    part.name, j.index)
 
 
-SPEC = parts.resolve_spec(parts.PartSpec(size_mm=90.0, rho_mm=1.0, boss_radius_mm=3.3,
-                                         pin_radius_mm=1.0), 1.0, 1.0)
+@pytest.mark.parametrize("which", ASSEMBLIES)
+def test_hardware_and_pieces_fit_their_holes(which):
+    """No printed part meets the hardware or a printed piece of its joints (a pin cap is a
+    press fit on its pin, by design), and two links of one joint keep the clearance."""
+    asm = assembly_of(which)
+    c = asm.printer.clearance_mm
+    for j in asm.joints:
+        links = [asm.parts[j.index].manifold, asm.parts[(j.index + 1) % 6].manifold]
+        others = [h.solid for h in asm.hardware if h.joint == j.index]
+        others += [p.manifold for p in asm.parts[6:] if p.joint[0] == j.index]
+        for link in links:
+            for o in others:
+                assert (link ^ o).volume() < 1e-6, j.index
+        gap = links[0].min_gap(links[1], 2.0)
+        assert c - polygon_error(j.reach + c) - 1e-4 <= gap <= max(c, j.gap) + 1e-4, j.index
 
 
-def test_split_moves_away_from_a_bar_that_leans_back():
-    jf = example_loop()[0]
-    one = parts.joint_zones(jf, _lean_points(False), SPEC)[0]
-    assert one.notch == (0.0, 0.0) and one.split < 5.0 - 1.0  # towards E_0, off the middle
-    # link 1's bar material within the zone cut's radius stays above the split (sampled)
-    d = np.array([7.0, 0.0, -10.0]) / np.linalg.norm([7.0, 0.0, -10.0])
-    lam = np.linspace(0.0, 12.2, 4001)[:, None]
-    phi = np.linspace(0.0, 2.0 * np.pi, 73)[:, None]
-    disc = np.cos(phi) * [0.0, 1.0, 0.0] + np.sin(phi) * np.cross(d, [0.0, 1.0, 0.0])
-    surface = (np.array([0, 0, 10.0]) + lam * d)[:, None] + SPEC.rho_mm * disc[None]
-    near = np.hypot(surface[..., 0], surface[..., 1]) < one.radius + one.gap + one.eps
-    assert near.any()
-    assert surface[..., 2][near].min() >= one.split + one.gap / 2 + one.eps - 1e-9
-    both = parts.joint_zones(jf, _lean_points(True), SPEC)[0]
-    assert both.notch[0] > 0 and both.notch[1] > 0  # no split clears both: the middle of it
-    assert both.notch[0] == pytest.approx(both.notch[1])
+def test_printed_pin_runs_through_both_bores():
+    asm = F.assembly("printed-pin")
+    for j in asm.joints:
+        pin = next(p for p in asm.parts if p.role == "pin" and p.joint[0] == j.index)
+        cap = next(p for p in asm.parts if p.role == "cap" and p.joint[0] == j.index)
+        for link, (s0, s1) in ((asm.parts[j.index], j.lower),
+                               (asm.parts[(j.index + 1) % 6], j.upper)):
+            # a slim cylinder along the bore over the boss's length lies in the pin
+            core = parts.cylinder(j.at(s0), j.at(s1), 0.9 * profiles.PRINTED_PIN_D_MM / 2)
+            assert (pin.manifold ^ core).volume() == pytest.approx(core.volume(), rel=1e-6)
+            radial = j.bore[0] - profiles.PRINTED_PIN_D_MM / 2
+            gap = pin.manifold.min_gap(link.manifold, 2.0)
+            assert radial - polygon_error(j.bore[0]) - 1e-4 <= gap <= radial + 1e-4
+        # the cap presses on the pin's end (interference), clear of link j+1's boss
+        assert (cap.manifold ^ pin.manifold).volume() > 0
+        assert cap.manifold.min_gap(asm.parts[(j.index + 1) % 6].manifold, 2.0) >= \
+            asm.printer.clearance_mm - 1e-4
 
 
-def test_notched_bars_keep_the_clearance():
-    """Both bars lean over the pin, so the zone notches them: what is left of each keeps the
-    clearance c from the neighbour's boss and its end face (it kept only the zone margin eps,
-    0.018 mm on random design 0, before)."""
-    spec = parts.PartSpec(size_mm=90.0, rho_mm=1.0, boss_radius_mm=3.3, pin_radius_mm=1.0)
-    asm = parts.build_assembly(example_loop()[0], _lean_points(True), 1.0, spec)
-    assert min(asm.zones[0].notch) > 0
-    poly_err = 3.7 * (1.0 - np.cos(np.pi / asm.spec.segments))
-    gap = asm.parts[0].manifold.min_gap(asm.parts[1].manifold, 2.0)
-    assert gap >= asm.spec.clearance_mm - 2 * poly_err
+@pytest.mark.parametrize("which", ["m3", "printed-pin"])
+def test_links_turn_about_their_joint_without_touching(which):
+    """Inside the joint zone both links are solids of revolution about the axis on their own
+    sides of the split: turning one about the axis never makes them meet there."""
+    asm = assembly_of(which)
+    for j in asm.joints:
+        lo, up = asm.parts[j.index].manifold, asm.parts[(j.index + 1) % 6].manifold
+        w = check.zone(asm, j.index)
+        for angle in (0.4, 1.7, 3.0, 4.4):
+            turn = _rotation(j.w, j.origin, angle)
+            moved = up.transform([list(r) for r in turn[:3]])
+            assert (lo ^ w ^ moved).volume() < 1e-9, (j.index, angle)
 
 
-@pytest.mark.parametrize("lean_lower", [False, True])
-def test_hardware_fits_at_a_moved_split(lean_lower):
-    """Pin in bore and boss ends keep the clearance c wherever the split lies."""
-    z = parts.joint_zones(example_loop()[0], _lean_points(lean_lower), SPEC)[0]
-    solid = {}
-    for upper in (False, True):
-        pieces = parts._hardware(z, SPEC, upper)
-        body = parts.m3d.Manifold.batch_boolean(
-            [parts.cylinder(p0, p1, r, 96) for p0, p1, r, bore in pieces if not bore],
-            parts.m3d.OpType.Add)
-        for p0, p1, r, bore in pieces:
-            if bore:
-                body = body - parts.cylinder(p0, p1, r, 96)
-        solid[upper] = body
-    assert (solid[False] ^ solid[True]).is_empty()
-    gap = solid[False].min_gap(solid[True], 1.0)
-    assert SPEC.clearance_mm * 0.95 <= gap <= SPEC.clearance_mm + 1e-6
+def _rotation(axis: np.ndarray, point: np.ndarray, angle: float) -> np.ndarray:
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    rot = np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * k @ k
+    m = np.eye(4)
+    m[:3, :3], m[:3, 3] = rot, point - rot @ point
+    return m
+
+
+def test_hex_bar_is_a_regular_hexagon_flat_on_down():
+    p0, p1 = np.array([1.0, 2.0, 3.0]), np.array([41.0, -8.0, 23.0])
+    down = np.array([0.3, 0.9, -0.2])
+    bar = parts.hex_bar(p0, p1, 5.0, down)
+    length = float(np.linalg.norm(p1 - p0))
+    assert bar.volume() == pytest.approx(stiffness.hex_area(5.0) * length, rel=1e-6)
+    tm = F.mesh_of(bar)
+    u = (p1 - p0) / length
+    n = down - (down @ u) * u
+    n /= np.linalg.norm(n)
+    # the face furthest along down is at the apothem and faces that way
+    assert (tm.vertices @ n).max() - p0 @ n == pytest.approx(5.0 * sizing.APOTHEM, rel=1e-6)
+    assert np.max(tm.face_normals @ n) == pytest.approx(1.0, abs=1e-6)
 
 
 def test_loose_shards_are_dropped_and_a_severed_link_is_refused():
     hub = parts.cylinder(np.zeros(3), np.array([0.0, 0.0, 5.0]), 3.0, 48)
-    shard = parts.m3d.Manifold.cube((1.0, 1.0, 1.0)).translate((20.0, 0.0, 0.0))
-    kept = parts._joined(hub + shard, [hub], 0)
+    shard = m3d.Manifold.cube((1.0, 1.0, 1.0)).translate((20.0, 0.0, 0.0))
+    kept = parts._one_piece(hub + shard, 0)
     assert len(kept.decompose()) == 1 and kept.volume() == pytest.approx(hub.volume())
-    # the hardware of the two joints in separate pieces: a link that would fall apart
-    other = hub.translate((0.0, 0.0, 40.0))
-    with pytest.raises(FabricationError, match="link 4 falls apart"):
-        parts._joined(hub + other + shard, [hub, other], 4)
+    other = hub.translate((0.0, 0.0, 40.0))  # two joints' halves in pieces: falls apart
+    with pytest.raises(FabricationError, match="link 4 falls apart") as err:
+        parts._one_piece(hub + other + shard, 4)
+    assert err.value.reason == "falls-apart"
+    with pytest.raises(FabricationError) as err:
+        parts._one_piece(m3d.Manifold(), 1)
+    assert err.value.reason == "not-watertight"
 
 
-def test_a_bar_along_its_pin_stays_on_its_boss():
-    """A bar leaving its boss along the pin's axis (tv8's link 4 nearly does): the bore is
-    blind, so it does not cut the bar off its boss."""
-    pts = _lean_points(True)
-    pts[9] = [-30.0, 60.0, 2.0]  # E_4 on the axis of joint 3's pin E_3 S_4
-    pts[10:] = [[-60.0, 90.0, 2.0], [-90.0, 60.0, 2.0]]  # link 5 at right angles to its pin
-    spec = parts.PartSpec(size_mm=90.0, rho_mm=1.0, boss_radius_mm=3.3, pin_radius_mm=1.0)
-    asm = parts.build_assembly(example_loop()[0], pts, 1.0, spec)
-    assert all(len(p.manifold.decompose()) == 1 for p in asm.parts)
+def test_body_capsules_hold_a_body():
+    body = m3d.Manifold.cube((30.0, 4.0, 6.0), True).rotate((10.0, 20.0, 30.0)).translate(
+        (5.0, -3.0, 100.0))
+    caps = parts.principal_capsules(body, pieces=8)
+    assert len(caps) <= 8
+    v = F.mesh_of(body).vertices
+    out = np.min([F.point_segment(v, a, b) - r for a, b, r, _ in caps], axis=0)
+    assert out.max() <= 0.0

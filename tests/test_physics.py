@@ -1,8 +1,9 @@
 """The MuJoCo physics check (fabrication.physics): a pendulum on a real 6R loop with a closed-form
-torque, today's tv8 export, a base that tips and one that stands, contacts, the MJCF file.
+torque, tv8's printed loop, its base standing and a narrow one tipping, contacts, the MJCF
+file.
 
 Runs are kept short: cycles of 2 - 4 s at the default 1 ms timestep (a few thousand steps, well
-under a second each), the tv8 parts built without the export's verification.
+under a second each), the tv8 parts verified at 90 samples only.
 """
 
 from __future__ import annotations
@@ -17,19 +18,17 @@ import trimesh
 from conftest import TV6_FACTORS
 
 from paraloop_core import design as design_mod
-from paraloop_core import pipeline
+from paraloop_core import pipeline, printed
 from paraloop_core.algebra import dq, factor, poly
 from paraloop_core.errors import FabricationError
 from paraloop_core.fabrication import (
     animate,
-    drive_mass,
-    export,
     mjcf,
-    parts,
     physics,
     physics_assembly,
     physics_model,
-    sizing,
+    printable,
+    profiles,
 )
 from paraloop_core.fabrication.physics import Body, Hinge, PhysicsModel
 from paraloop_core.linkage import loops
@@ -158,26 +157,24 @@ def test_contacts_between_non_adjacent_links_are_reported():
 
 
 @pytest.fixture(scope="module")
-def tv8() -> tuple[PhysicsModel, float, dict]:
-    """tv8 exported as today's sizing does (without the verification), as a physics model,
-    with the quasi-static peak torque of the export's report."""
+def tv8() -> tuple[PhysicsModel, float, int, np.ndarray]:
+    """tv8's printed loop as ``paraloop export`` makes it (on its rod and base plate) as a
+    physics model, with the quasi-static peak torque of the export's report, the resting
+    (grounded) link and the rod's foot on the table (world, mm)."""
     design = design_mod.load_design("assets/designs/tv8.json")
-    real = pipeline.solve(design).realization
-    sz = sizing.choose_size(sizing.realization_limits(real), sizing.PRINTERS["generic"])
-    spec = parts.PartSpec(size_mm=sz.size_mm, rho_mm=sz.bar_radius_mm,
-                          boss_radius_mm=sz.boss_radius_mm, pin_radius_mm=sz.pin_radius_mm)
-    res = export.export_parts(real.joint_factors, real.points, real.radius, spec=spec,
-                              verify=False, with_guide=False)
-    ground = res.report["grounding"]
-    quasi = drive_mass.drive_entry(res.assembly, ground["link"], design.drive)
-    model = physics_assembly.model_from_assembly(res.assembly, ground["link"],
-                                                 ground["ground_z_mm"], design.drive)
-    return model, quasi["peak_torque_n_m"], ground
+    sol = pipeline.solve(design)
+    made, _ = printed.make(sol, printable.Options(samples=90))
+    quasi = made.report["drive"]["peak_torque_n_m"]
+    model = physics_assembly.model_from_assembly(made.assembly, profiles.MATERIALS["pla"],
+                                                 design.drive)
+    w = made.base.world_from_home()
+    foot = w[:3, :3] @ made.base.bottom + w[:3, 3]
+    return model, quasi, made.report["drive"]["resting_link"], foot
 
 
 def test_tv8_export_completes_the_cycle(tv8):
-    model, quasi, ground = tv8
-    assert model.grounded_link == ground["link"]
+    model, quasi, resting, _ = tv8
+    assert model.grounded_link == resting
     assert all(b.convex for b in model.bodies)
     rep = physics.simulate(model, anchored=True, quasi_static_peak_nm=quasi)
     assert rep.completed and rep.ok and rep.non_adjacent_contacts == 0
@@ -191,27 +188,21 @@ def test_tv8_export_completes_the_cycle(tv8):
     json.dumps(out, allow_nan=False)
 
 
-def _on_plate(model: PhysicsModel, half: float, thick: float, kg: float,
-              offset: float = 0.0) -> PhysicsModel:
-    """The model on a square plate of side ``2 half`` (mm) under its foot (the grounded
-    link's lowest point), shifted by ``offset`` along x; the table under the plate."""
-    foot = np.concatenate([b.mesh.vertices for b in model.bodies
-                           if b.link == model.grounded_link])
-    low = foot[np.argmin(foot[:, 2])]
-    plate = _box([low[0] + offset, low[1], model.table_z_mm - thick / 2],
-                 [2 * half, 2 * half, thick])
-    return replace(model, bodies=(Body("base", -1, plate, kg, (plate,)), *model.bodies),
-                   table_z_mm=model.table_z_mm - thick,
-                   time_s=model.time_s * 0.4)  # a 4 s cycle: short, and harder to stand
-
-
-def test_a_wide_heavy_base_stands_and_a_light_narrow_one_tips(tv8):
-    model = tv8[0]
-    wide = physics.simulate(_on_plate(model, 200.0, 6.0, 3.0))
-    assert wide.stands and wide.completed
+def test_the_printed_base_stands_and_a_light_narrow_one_tips(tv8):
+    """On a 4 s cycle (harder to stand than the design's 10 s): the export's base plate keeps
+    the sculpture standing; a 10 mm square of 2 g under the rod's foot instead does not."""
+    model, _, _, foot = tv8
+    fast = replace(model, time_s=model.time_s * 0.4)
+    wide = physics.simulate(fast)
+    assert wide.stands and wide.completed and wide.ok
     assert wide.base_tilt_deg_max < physics.TILT_LIMIT_DEG
     assert wide.base_lift_mm_max < physics.LIFT_LIMIT_MM
-    narrow = physics.simulate(_on_plate(model, 5.0, 2.0, 0.002, offset=3.0))
+    assert model.table_z_mm == pytest.approx(0.0) and foot[2] == pytest.approx(0.0, abs=1e-9)
+    box = _box([foot[0] + 3.0, foot[1], 1.0], [10.0, 10.0, 2.0])
+    bodies = tuple(Body("base", -1, box, 0.002, (box,)) if b.link == -1 else b
+                   for b in fast.bodies)
+    assert sum(b.link == -1 for b in bodies) == 1
+    narrow = physics.simulate(replace(fast, bodies=bodies))
     assert narrow.stands is False and not narrow.ok
     assert narrow.base_tilt_deg_max > physics.TILT_LIMIT_DEG
 
@@ -225,7 +216,11 @@ def test_mjcf_file_loads_with_its_meshes(tmp_path, tv8):
     (tmp_path / "paraloop.xml").write_text(xml)
     m = mujoco.MjModel.from_xml_path(str(tmp_path / "paraloop.xml"))
     assert m.nbody == 1 + len(model.bodies) and m.njnt == 1 + 5  # free base + tree hinges
-    assert m.neq == 2 and m.nu == 3 and m.nexclude == 6
+    # every pair of bodies on neighbouring links is excluded (one body per part or piece)
+    links = [b.link for b in model.bodies]
+    pairs = sum(1 for i, a in enumerate(links) for b in links[i + 1:]
+                if a >= 0 and b >= 0 and (a - b) % 6 in (1, 5))
+    assert m.neq == 2 and m.nu == 3 and m.nexclude == pairs > 6
     visual = [m.geom(i).name for i in range(m.ngeom) if m.geom(i).name.endswith("_visual")]
     assert sorted(visual) == sorted(f"{n}_visual" for n in names)
     # every body frame is the world frame at home: the link meshes are where the STLs say

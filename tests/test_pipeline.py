@@ -162,8 +162,14 @@ def test_end_effector_mesh_errors_reach_the_user(tmp_path):
     data["end_effector"]["mesh"] = "missing.stl"
     path = tmp_path / "d.json"
     path.write_text(json.dumps(data))
-    with pytest.raises(ParaloopError, match="not found"):
-        pipeline.solve(design.load_design(path))
+    with pytest.raises(ParaloopError, match="^end_effector.mesh: no mesh file"):
+        design.load_design(path)  # refused on load, not when solving
+    mesh = tmp_path / "missing.stl"
+    mesh.write_bytes((ASSETS.parent / "meshes" / "shading-panel.stl").read_bytes())
+    loaded = design.load_design(path)
+    mesh.unlink()  # gone after loading: the solve says which field
+    with pytest.raises(ParaloopError, match="^end_effector.mesh: no mesh file"):
+        pipeline.solve(loaded)
 
 
 def test_rounded_inertia_axes_in_a_file_are_accepted_and_orthonormalized():

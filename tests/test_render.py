@@ -288,19 +288,23 @@ def test_exploded_scene_pulls_groups_apart_along_the_axis():
 
 
 @pytest.mark.slow
-def test_assembly_pictures_of_todays_parts():
-    from test_parts import example_assembly
+def test_assembly_pictures_of_the_printed_loop():
+    import fab_fixtures as F
 
-    scenes = dict(guide_pictures.assembly_scenes(example_assembly(False)))
-    assert list(scenes) == ["assembly_loop.png"] + [f"assembly_where_{j}.png" for j in range(6)] \
-        + [f"assembly_joint_{j}.png" for j in range(6)]
-    loop = scenes["assembly_loop.png"]
-    assert [lab.text for lab in loop.labels] == \
-        [f"link {k}" for k in range(6)] + [f"joint {k}" for k in range(6)]
-    for j in range(6):
-        texts = {lab.text for lab in scenes[f"assembly_joint_{j}.png"].labels}
-        assert {f"pin of link {j}", f"bore of link {(j + 1) % 6}"} <= texts
-    png = scenes["assembly_joint_0.png"].png()
+    asm = F.printed().assembly
+    scenes = dict(guide_pictures.assembly_scenes(asm))
+    assert list(scenes) == ["guide_loop.png"] + [f"guide_joint_{j}.png" for j in range(6)] \
+        + ["guide_base.png"]
+    loop = scenes["guide_loop.png"]
+    assert [lab.text for lab in loop.labels] == [f"link {k}" for k in range(6)] + [
+        "base plate", "rod"] + [f"joint {k}" for k in range(6)]
+    for jt in asm.joints:
+        j = jt.index
+        texts = {lab.text for lab in scenes[f"guide_joint_{j}.png"].labels}
+        assert {f"link {j}", f"link {(j + 1) % 6}", f"axis of joint {j}"} <= texts
+        assert ({"screw", "washer", "lock nut (into its trap)"} if jt.kind == "m3" else
+                {"rod", f"rod cap {j}"}) <= texts
+    png = scenes["guide_joint_0.png"].png()
     img = np.asarray(Image.open(io.BytesIO(png))).reshape(-1, 3).astype(int)
-    pin = np.abs(img - guide_pictures.PIN_COLOR).sum(1) < 150  # the pin shows in its colour
+    pin = np.abs(img - guide_pictures.PIN_COLOR).sum(1) < 150  # the screw shows in its colour
     assert pin.sum() > 200

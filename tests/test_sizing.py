@@ -1,196 +1,255 @@
-"""Automatic size and radii from the certified pair bounds (:mod:`fabrication.sizing`)."""
+"""Size and radii from the certified pair bounds (:mod:`fabrication.sizing`), the bed fit
+(:mod:`fabrication.bed`) and the choice among candidate realizations (:mod:`printable`)."""
 
 from __future__ import annotations
 
-import json
-
+import fab_fixtures as F
 import numpy as np
 import pytest
+from independent.segdist import segment_distance
 
-from paraloop_core.errors import FabricationError
-from paraloop_core.fabrication import sizing
+from paraloop_core.errors import FabricationError, RealizationError
+from paraloop_core.fabrication import bed, printable, profiles, sizing, stiffness
 
-LIM = sizing.Limits(bar_bar=0.02, bar_pin=0.03, pin_pin=0.1, extent=1.0, pin_length=0.1)
-GENERIC = sizing.PRINTERS["generic"]
-
-
-def _constraints_hold(sz: sizing.Sizing, lim: sizing.Limits, printer: sizing.Printer) -> None:
-    k, c = sz.scale, printer.clearance_mm
-    tol = 1e-9
-    assert 2 * sz.bar_radius_mm + c <= k * lim.bar_bar + tol
-    assert sz.bar_radius_mm + sz.boss_radius_mm + c <= k * lim.bar_pin + tol
-    assert 2 * sz.boss_radius_mm + c <= k * lim.pin_pin + tol
-    assert sz.bar_radius_mm >= printer.wall_mm / 2 - tol
-    assert sz.pin_radius_mm >= printer.pin_radius_mm - tol
-    assert sz.boss_radius_mm >= sz.pin_radius_mm + c + printer.wall_mm - tol
-    assert sz.bar_radius_mm < sz.boss_radius_mm
+GENERIC = profiles.PRINTERS["generic"]
+ROD = profiles.DEFAULT_ROD
+SQ3 = np.sqrt(3.0)
 
 
-def test_minimum_size_is_the_binding_constraint():
-    sz = sizing.choose_size(LIM, GENERIC)
-    # bar-bar: (2 * 1 + 0.3) / 0.02 = 115; bar-boss: (1 + 3.3 + 0.3) / 0.03 = 153.3
-    assert sz.min_size_mm == pytest.approx(4.6 / 0.03)
-    assert sz.binding == "bar-boss clearance"
-    assert sz.size_mm == pytest.approx(sz.min_size_mm)  # above the preferred 150 mm
-    _constraints_hold(sz, LIM, GENERIC)
-    at_min = sizing.choose_size(LIM, GENERIC, sz.min_size_mm)
-    assert at_min.bar_radius_mm == pytest.approx(1.0)
-    assert at_min.boss_radius_mm == pytest.approx(3.3)
+def capsules(e: int, radius: np.ndarray, boss: np.ndarray, env: np.ndarray
+             ) -> list[tuple[float, float]]:
+    """``(radius, reach past the segment's ends)`` of the capsules about edge ``e`` (module
+    docstring of sizing: a bar's hexagon, a pin's bosses and its metal pieces)."""
+    if e % 2 == 0:
+        return [(float(radius[e // 2]), 0.0)]
+    j = e // 2
+    return [(float(boss[j]), float(env[j, 0]))] + ([(0.0, float(env[j, 1]))]
+                                                    if env[j, 1] > 0 else [])
 
 
-@pytest.mark.parametrize("size", [180.0, 250.0, 1000.0])
-def test_radii_grow_within_the_certified_limits(size):
-    sz = sizing.choose_size(LIM, GENERIC, size)
-    _constraints_hold(sz, LIM, GENERIC)
-    smaller = sizing.choose_size(LIM, GENERIC, 0.9 * size)
-    assert sz.boss_radius_mm >= smaller.boss_radius_mm
-    assert sz.bar_radius_mm >= smaller.bar_radius_mm
-    if size >= 1000:  # beyond the profile's minimum the caps let them grow with the size
-        assert sz.boss_radius_mm > smaller.boss_radius_mm
+def worst_room(b: sizing.Bounds, k: float, radius: np.ndarray, boss: np.ndarray,
+               env: np.ndarray, gaps: np.ndarray, samples: int = 720) -> float:
+    """Least ``distance - radii - reaches - gap`` (mm) of every pair of capsules that must keep
+    a gap, the distance of their centre segments measured over the cycle at ``samples``
+    parameters (an independent segment distance, the link poses straight from the loop), not
+    the certified bounds: >= 0 when the capsules keep their gaps at those samples."""
+    jf = F.real().joint_factors
+    pts = b.points * k
+    edge = np.stack([pts, np.roll(pts, -1, axis=0)], 1)  # edge e: points e, e + 1
+    u = (np.arange(samples) + 0.5) / samples
+    worst = np.inf
+
+    def check(e1: int, e2: int, la: int, lb: int, gap: float) -> None:
+        nonlocal worst
+        rel = F.relative_poses(jf, k, la, u)[:, lb]
+        moved = np.einsum("tij,nj->tni", rel[:, :3, :3], edge[e2]) + rel[:, None, :3, 3]
+        dist = segment_distance(edge[e1][0], edge[e1][1], moved[:, 0], moved[:, 1]).min()
+        for r1, x1 in capsules(e1, radius, boss, env):
+            for r2, x2 in capsules(e2, radius, boss, env):
+                worst = min(worst, float(dist - r1 - x1 - r2 - x2 - gap))
+
+    for (e1, e2, la, lb) in b.rows:
+        check(int(e1), int(e2), int(la), int(lb), float(gaps[la, lb]))
+    for i in range(6):
+        j = (i + 1) % 6
+        check(2 * i, 2 * j, i, j, float(gaps[i, j]))  # consecutive bars
+        # consecutive pins are both fixed in link i + 1: their bosses of links i and i + 2
+        check(2 * i + 1, 2 * j + 1, j, j, float(gaps[i, (i + 2) % 6]))
+    return worst
 
 
-def test_too_small_a_size_is_refused_with_the_minimum():
-    with pytest.raises(FabricationError, match="bar-boss clearance needs at least 154 mm"):
-        sizing.choose_size(LIM, GENERIC, 100.0)
+@pytest.fixture(scope="module")
+def bounds() -> sizing.Bounds:
+    return sizing.bounds_of(F.real())
 
 
-def test_limits_by_pair_type():
-    pts = np.arange(36, dtype=float).reshape(12, 3) % 7
-    pairs = np.array([[0, 4, 0, 2], [0, 3, 0, 1], [1, 7, 0, 3], [2, 6, 1, 3]])
-    lim = sizing.limits(pts, pairs, np.array([0.4, 0.6, 0.9, 0.3]), np.full(6, 0.35))
-    # bar-bar: min(0.4, 0.3, joint 0.35); bar-pin 0.6; pin-pin 0.9
-    assert (lim.bar_bar, lim.bar_pin, lim.pin_pin) == (0.3, 0.6, 0.9)
-    assert lim.extent == pytest.approx(6.0)
+def _inputs(b: sizing.Bounds, size: float = F.SIZES["m4"], cap: float = 12.0):
+    """A programme whose rows bind: M4 joints at ``size``, bars up to ``cap`` mm."""
+    k = size / b.extent
+    rmin = sizing.min_radii(b, k, GENERIC, "m4", 1)
+    bmin = sizing.min_boss(GENERIC, "m4", ROD)
+    env = sizing.envelopes(F.plan("m4").layouts)
+    gaps = stiffness.required_gaps(np.full(6, 0.2))
+    return k, rmin, cap, bmin, env, gaps
+
+
+def test_every_row_holds_for_the_returned_radii(bounds):
+    k, rmin, cap, bmin, env, gaps = _inputs(bounds)
+    r, boss = sizing.radii(bounds, k, rmin, cap, bmin, env, gaps)
+    assert np.all(r >= rmin - 1e-9) and np.all(r <= cap + 1e-9) and np.all(boss >= bmin - 1e-9)
+    # each boss holds a fillet around both bars it joins
+    assert np.all(boss >= sizing.BOSS_PER_BAR * np.maximum(r, np.roll(r, -1)) - 1e-9)
+    # the certified rows, written out here: r_a + r_b + gap <= k L - x_a - x_b
+    for (e1, e2, la, lb), low in zip(bounds.rows, bounds.lower, strict=True):
+        for r1, x1 in capsules(int(e1), r, boss, env):
+            for r2, x2 in capsules(int(e2), r, boss, env):
+                assert r1 + r2 + gaps[la, lb] <= k * low - x1 - x2 + 1e-9
+    # the capsules keep their gaps over the cycle, measured without the certificate
+    assert worst_room(bounds, k, r, boss, env, gaps) >= -1e-6
+    # the thinnest bar is the largest the rows allow: a hair thicker is infeasible
+    t = float(r.min())
+    assert t < cap  # the rows bind here, not the cap
+    assert sizing.radii(bounds, k, np.maximum(rmin, t * 1.001), cap, bmin, env, gaps) is None
+    assert len(np.unique(np.round(r, 6))) > 1  # and the others grow past it where they can
+
+
+def test_infeasible_programmes_return_none(bounds):
+    k, rmin, cap, bmin, env, gaps = _inputs(bounds)
+    assert sizing.radii(bounds, k, rmin, cap, bmin, env, gaps + 100.0) is None
+    assert sizing.radii(bounds, 0.1 * k, rmin, cap, bmin, env, gaps) is None
+    # a metal piece alone reaching past a row's room: nothing to shrink
+    big = env.copy()
+    big[:, 1] = 1e3
+    assert sizing.radii(bounds, k, rmin, cap, bmin, big, gaps) is None
+    # a floor above the cap
+    assert sizing.radii(bounds, k, np.full(6, cap + 1.0), cap, bmin, env, gaps) is None
+
+
+def test_plans_keep_their_required_gaps(bounds):
+    for kind in ("m3", "m4", "printed-pin"):
+        p = F.plan(kind)
+        assert p.size_mm == pytest.approx(F.SIZES[kind]) and p.scale * bounds.extent == \
+            pytest.approx(p.size_mm)
+        gaps = stiffness.required_gaps(p.deflection.total)
+        assert np.allclose(p.gaps, gaps)
+        room = worst_room(bounds, p.scale, p.radii, p.boss, sizing.envelopes(p.layouts), p.gaps)
+        assert room >= -1e-6, kind
+
+
+def test_min_radii_and_caps(bounds):
+    k = 300.0 / bounds.extent
+    length = bounds.bar_lengths * k
+    flat = (F.GENERIC.wall_mm + 1.7) / (SQ3 / 2)  # M3 bore 1.7 mm under the bar's flat
+    aims = sizing.min_radii(bounds, k, GENERIC, "m3", 0)
+    assert aims == pytest.approx(np.maximum.reduce([np.full(6, 7.0 / SQ3), length / (25 * SQ3),
+                                                    np.full(6, flat)]))
+    floors = sizing.min_radii(bounds, k, GENERIC, "m3", 1)
+    assert floors == pytest.approx(np.maximum.reduce([np.full(6, 6.0 / SQ3),
+                                                      length / (30 * SQ3), np.full(6, flat)]))
+    assert sizing.min_radii(bounds, k, GENERIC, "m3", 3) == pytest.approx(np.full(6, flat))
+    assert [sizing.bar_cap(s) for s in (100.0, 200.0, 250.0, 400.0)] == pytest.approx(
+        [4.5, 5.6, 7.0, 8.0])
+    assert sizing.min_boss(GENERIC, "m3", ROD) == pytest.approx(3.0 + 0.3 + 0.1 + 1.6)
+
+
+def _lw(p: sizing.Plan, b: sizing.Bounds) -> np.ndarray:
+    return b.bar_lengths * p.scale / (p.radii * SQ3)
+
+
+def test_aims_then_floors(bounds):
+    """At the fixtures' size (220 mm) the aims hold (bars >= 7 mm wide, <= 25 times as long,
+    gaps 10 % over 3x the deflections); at 400 mm only the floors (6 mm, 30) and the plan
+    says so."""
+    p = F.plan("m3")
+    assert p.level == 0 and p.aims_met
+    assert np.all(p.radii * SQ3 >= sizing.WIDTH_AIM_MM - 1e-9)
+    assert np.all(_lw(p, bounds) <= sizing.LW_AIM + 1e-9)
+    big = sizing.plan(F.real(), GENERIC, F.PLA, "m3", ROD, size_mm=400.0)
+    assert big.level == 1 and not big.aims_met
+    k = 400.0 / bounds.extent
+    matrix = stiffness.torque_matrix(F.real())
+    assert sizing.at_scale(F.real(), bounds, k, GENERIC, F.PLA, "m3", ROD, 0.05, matrix,
+                           0) is None
+    assert np.all(big.radii * SQ3 >= sizing.WIDTH_MM - 1e-9)
+    assert np.all(_lw(big, bounds) <= sizing.LW_MAX + 1e-9)
+    assert sizing.to_dict(big, GENERIC, bounds)["level"] == "floors"
+
+
+def test_too_small_a_size_is_refused():
+    with pytest.raises(FabricationError, match="at 120 mm") as err:
+        sizing.plan(F.real(), GENERIC, F.PLA, "m3", ROD, size_mm=120.0)
+    assert err.value.reason == "bad-parameters"
+
+
+def test_report_entry_and_the_limiting_pair(bounds):
+    p = F.plan("m4")
+    d = sizing.to_dict(p, GENERIC, bounds)
+    assert d["bar_width_mm"] == pytest.approx(p.radii * SQ3)
+    assert d["level"] == "aims" and d["size_mm"] == pytest.approx(p.size_mm)
+    lim = d["limiting_pair"]
+    thin = int(np.argmin(p.radii))
+    assert lim["thinnest_bar_link"] == thin and thin in lim["links"]
+    assert lim["room_left_mm"] >= -1e-6  # the plan keeps every row
+
+
+def test_automatic_size_fits_the_bed():
+    """Without a size, the largest at which the predicted parts fit the bed: the parts may
+    not grow, and a slightly larger bed gives a larger size."""
+    r = F.real()
+
+    def fit(p):
+        return printable.predicted_fit(p, r.points, GENERIC)
+
+    p = sizing.plan(r, GENERIC, F.PLA, "m3", ROD, fit=fit)
+    assert fit(p) >= 1.0 and p.level == 0
+    assert sizing.MIN_SIZE_MM <= p.size_mm <= bed.bed_scale(r.points, GENERIC) * \
+        sizing.bounds_of(r).extent + 1e-6
+
+
+# --- the bed -------------------------------------------------------------------------------
 
 
 def test_bed_fit_in_any_orientation():
     ext = np.array([[200.0, 240.0, 10.0], [260.0, 1.0, 1.0], [330.0, 1.0, 1.0],
                     [260.0, 220.0, 220.0], [300.0, 14.0, 11.0]])
     # a long thin bar lies diagonally on the 250 x 210 bed (diagonal 326 mm)
-    assert sizing.fits_bed(ext, GENERIC).tolist() == [True, True, False, False, True]
-    f = sizing.fit_factor(ext[1:2], GENERIC)[0]
-    assert sizing.fits_bed(ext[1:2] * f * 0.999, GENERIC)[0]
-    assert not sizing.fits_bed(ext[1:2] * f * 1.01, GENERIC)[0]
+    assert bed.fits_bed(ext, GENERIC).tolist() == [True, True, False, False, True]
+    f = bed.fit_factor(ext[1:2], GENERIC)[0]
+    assert bed.fits_bed(ext[1:2] * f * 0.999, GENERIC)[0]
+    assert not bed.fits_bed(ext[1:2] * f * 1.01, GENERIC)[0]
 
 
-def test_plain_export_sizes_for_the_printer(tmp_path):
-    from app.cli.main import main
-
-    out = tmp_path / "parts"
-    code = main(["export", "assets/designs/sun-disc.json", "--out", str(out), "--samples", "90",
-                 "--quiet"])
-    report = json.loads((out / "report.json").read_text())
-    assert code == 0 and report["verification"]["ok"]
-    sz = report["sizing"]
-    assert sz["chosen"] == "auto" and all(sz["fits_bed"])
-    assert sz["size_mm"] >= sz["min_size_mm"] and sz["pin_radius_mm"] >= 1.0
-    assert sz["boss_radius_mm"] >= sz["pin_radius_mm"] + 0.3 + 2.0 - 1e-9
-    walls = report["walls"]  # bars, bore walls and each boss's axial thickness
-    assert walls["ok"] and walls["p5_mm"] >= 0.99 * 2.0
-
-
-def test_roomier_realization_when_the_bed_is_too_small():
-    """A realization too thin for the bed is realized again with larger d and rho, certified."""
-    from test_parts import example_loop
-
-    from paraloop_core.fabrication import printable
-    from paraloop_core.realization import realize
-
-    jf, _, _ = example_loop()
-    real = realize.realize(jf)
-    _, fit = printable.predicted_fit(real, GENERIC)
-    roomy_bed = sizing.Printer("roomy", tuple(b * 2 / fit for b in GENERIC.bed_mm))
-    assert printable.roomier(real, roomy_bed) == (real, None)
-    small = sizing.Printer("small", tuple(b * 0.8 / fit for b in GENERIC.bed_mm))
-    assert printable.predicted_fit(real, small)[1] == pytest.approx(0.8)
-    new, note = printable.roomier(real, small)
-    assert new is not real and "realized again" in note  # this loop has room to spare
-    assert printable.predicted_fit(new, small)[1] >= printable.FIT_MARGIN
-    assert new.certified_clearance >= 2 * new.radius and new.radius > real.radius
+def test_footprint_turn_known_answers():
+    bed_xy = np.array([250.0, 210.0])
+    f, turn = bed.footprint_turn(np.array([100.0, 50.0]), bed_xy)
+    assert turn == 0.0 and f == pytest.approx(min(250 / 100, 210 / 50))
+    # a 300 x 12 footprint fits only turned: the best factor by brute force over angles
+    w, h = 300.0, 12.0
+    a = np.radians(np.linspace(0.0, 90.0, 90001))
+    brute = np.minimum(250 / (w * np.cos(a) + h * np.sin(a)), 210 / (w * np.sin(a) + h *
+                                                                      np.cos(a))).max()
+    f, turn = bed.footprint_turn(np.array([w, h]), bed_xy)
+    assert 1.0 < f <= brute + 1e-12 and f == pytest.approx(brute, rel=2e-3)
+    c, s = np.cos(turn), np.sin(turn)  # the turned box fits at that factor
+    assert f * (w * c + h * s) <= 250 + 1e-9 and f * (w * s + h * c) <= 210 + 1e-9
 
 
-def test_roomier_tries_the_design_s_other_loops():
-    """Random design 11: its own loop, even with d and rho x2 .. x8, is predicted not to fit
-    the generic bed; another of its nine loops does, and is certified like the first."""
-    from independent.generic_designs import random_design
-
-    import paraloop_core as pl
-    from paraloop_core.fabrication import printable
-
-    design = pl.design_from_dict(random_design(11, 1.0))
-    sol = pl.solve(design)
-    others = sol.other_loops()
-    fixed = dict(design.realization.fixed)
-    assert printable.predicted_fit(sol.realization, GENERIC)[1] < printable.FIT_MARGIN
-    assert printable.roomier(sol.realization, GENERIC, fixed)[0] is sol.realization
-    new, note = printable.roomier(sol.realization, GENERIC, fixed, others)
-    assert printable.predicted_fit(new, GENERIC)[1] >= printable.FIT_MARGIN
-    used = [i for i, jf in others.items() if np.array_equal(jf, new.joint_factors)]
-    assert len(used) == 1 and f"loop {used[0]}" in note
-    assert new.certified_clearance >= 2 * new.radius
+def test_bed_scale_fills_the_bed_with_the_largest_skeleton():
+    pts = F.real().points
+    k = bed.bed_scale(pts, GENERIC)
+    s, e = pts[0::2], pts[1::2]
+    worst = np.inf
+    for i in range(6):  # each link's bar and half of each of its pins, in its own axes
+        c = np.array([(e[i - 1] + s[i]) / 2, s[i], e[i], (e[i] + s[(i + 1) % 6]) / 2]) * k
+        c = c - c.mean(0)
+        ext = np.ptp(c @ np.linalg.svd(c)[2].T, axis=0)
+        worst = min(worst, float(bed.fit_factor(ext[None], GENERIC)[0]))
+    assert worst == pytest.approx(1.0)
 
 
-def test_a_link_notched_through_raises_the_size():
-    """Random design 0: at the profile's smallest size a bar leaning over its pin is notched
-    through (link 0 would print in two pieces); the size grows until every part is one piece."""
-    from independent.generic_designs import random_design
-
-    import paraloop_core as pl
-    from paraloop_core.fabrication import printable
-
-    design = pl.design_from_dict(random_design(0, 1.0))
-    sol = pl.solve(design)
-    res = printable.export_printable(sol.realization, samples=24, ground=False,
-                                     fixed=dict(design.realization.fixed))
-    sz, ver = res.report["sizing"], res.report["verification"]
-    assert sz["size_mm"] > 1.15 * sz["min_size_mm"]
-    assert any("falls apart" in w and "size raised" in w for w in res.report["warnings"])
-    assert all(p["pieces"] == 1 for p in ver["parts"]) and ver["watertight"]
-    assert all(len(p.manifold.decompose()) == 1 for p in res.assembly.parts)
+# --- the choice among candidates -----------------------------------------------------------
 
 
-def test_a_link_falling_apart_at_every_size_gets_another_realization(monkeypatch):
-    """Random design 49 had a link notched through at every size tried: the export then
-    realizes the loop again (roomier, which no longer keeps the first realization)."""
-    from test_parts import example_loop
+def test_choice_names_every_failure_and_keeps_the_sized():
+    def refused():
+        raise RealizationError("no realization in the budget", "not-found")
 
-    from paraloop_core.fabrication import printable
-    from paraloop_core.realization import realize
-
-    real = realize.realize(example_loop()[0])
-    calls, fit = [], printable._fit
-
-    def first_falls_apart(r, *args):
-        calls.append(r)
-        if len(calls) == 1:
-            raise FabricationError("link 2 falls apart into 2 pieces", "falls-apart")
-        return fit(r, *args)
-
-    monkeypatch.setattr(printable, "_fit", first_falls_apart)
-    res = printable.export_printable(real, samples=16, ground=False)
-    assert calls[0] is real and calls[1] is not real and calls[1].radius > real.radius
-    assert any("falls apart at every size" in w for w in res.report["warnings"])
-    assert res.report["verification"]["ok"]
+    good = printable.Candidate("roomy", 4, lambda: (F.real(), None))
+    bad = printable.Candidate("thin", 4, refused)
+    opts = printable.Options(size_mm=F.SIZE_MM)
+    ranked, tried = printable.choose([bad, good], opts)
+    assert [c.label for c, *_ in ranked] == ["roomy"] and tried[0].startswith("thin: no reali")
+    assert ranked[0][3].size_mm == pytest.approx(F.SIZE_MM)
+    with pytest.raises(FabricationError, match="thin: no realization in the budget"):
+        printable.choose([bad], opts)
+    small = printable.Options(size_mm=60.0)
+    with pytest.raises(FabricationError, match="roomy: at 60 mm"):
+        printable.choose([good], small)
 
 
-def test_thin_walls_raise_the_size_while_the_parts_fit(monkeypatch):
-    """Random design 74 had 5 % of a notched bar under 2 mm (p5 1.94 mm) at the smallest
-    size; the automatic size grows (x1.2, while the parts stay on the bed) until the walls
-    hold. A stub stands in for the thin first build here."""
-    from test_parts import example_loop
-
-    from paraloop_core.fabrication import printable
-    from paraloop_core.realization import realize
-
-    real = realize.realize(example_loop()[0])
-    sizes, walls = [], printable.walls_report
-
-    def thin_first(result, printer):
-        sizes.append(result.assembly.spec.size_mm)
-        rep = walls(result, printer)
-        return {**rep, "ok": False, "p5_mm": 1.94} if len(sizes) == 1 else rep
-
-    monkeypatch.setattr(printable, "walls_report", thin_first)
-    res = printable.export_printable(real, samples=16, ground=False)
-    assert sizes[1] == pytest.approx(1.2 * sizes[0]) and res.report["walls"]["ok"]
-    assert any("walls are under 2 mm (1.94 mm)" in w for w in res.report["warnings"])
+def test_print_in_place_is_refused_at_once():
+    cand = printable.Candidate("roomy", 4, lambda: (F.real(), None))
+    with pytest.raises(FabricationError, match="lean up to") as err:
+        printable.choose([cand], printable.Options(joints="print-in-place"))
+    assert err.value.reason == "bad-parameters"
+    assert str(err.value).count("deg") >= 8  # the limit, the worst lean, each joint's

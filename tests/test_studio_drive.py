@@ -122,7 +122,7 @@ def test_settings_survive_save_and_load(tv8):
 
 
 def test_torque_of_the_fabricated_parts_until_the_design_changes(tv8):
-    """A finished export's report (its ``drive`` entry, as ``drive_mass.drive_entry`` writes
+    """A finished export's report (its ``drive`` entry, as ``drive_mass.entry`` writes
     it) gives the torque curve; a design change that moves the bars makes it stale."""
     drawn(tv8)
     theta = np.arange(128) * (TWO_PI / 128)

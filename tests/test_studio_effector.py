@@ -82,9 +82,9 @@ def test_mesh_upload_is_stored_validated_and_saved(studio, tmp_path, monkeypatch
     assert studio.error is None and studio.solution.end_effector is not None
     assert "effector" in studio.scene.handles and bars(studio) == 7
     assert len(studio.scene.handles["effector"].faces) == 12
-    click(studio.panels.save)  # the downloaded design keeps the reference
+    click(studio.panels.save)  # the downloaded design names the upload, no server path
     saved = json.loads(studio.downloads[-1][1])
-    assert saved["end_effector"]["mesh"] == str(stored)
+    assert saved["end_effector"]["mesh"] == stored.name
     upload(studio, "box.glb", trimesh.creation.box((0.2, 0.2, 0.1)).export(file_type="glb"),
            panel.upload)
     assert Path(studio.state.design.end_effector.mesh).suffix == ".glb" and bars(studio) == 7

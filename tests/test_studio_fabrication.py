@@ -23,10 +23,10 @@ from paraloop_core.algebra import dq, poly
 from paraloop_core.linkage import loops
 
 DESIGNS = Path(__file__).resolve().parent.parent / "assets" / "designs"
-PART_FILES = {f"link_{i}.stl" for i in range(6)} | {"paraloop.3mf", "assembly.glb",
-                                                     "report.json", "paraloop-result.json",
-                                                     "assembly.md"} | {
-    f"assembly_step_{k}.png" for k in range(1, 8)}
+#: what every export zip holds besides the parts' STLs and further plates
+FIXED_FILES = {"paraloop-result.json", "paraloop.3mf", "assembly.glb", "animation.glb",
+               "report.json", "result.json", "assembly.md", "assembly.html", "guide_loop.png",
+               "guide_base.png"} | {f"guide_joint_{j}.png" for j in range(6)}
 
 
 def open_studio(name: str, autosave=None):
@@ -99,7 +99,7 @@ def test_carve_draws_animated_spaces_and_the_bound(sun):
     wait_long(sun)  # bounded wait: a hang fails here (speed is measured in benchmarks/)
     scene = sun.scene
     assert len(scene.spaces) == 6 and all(h.visible for _, h in scene.spaces), sun.notifications
-    size = size_of(sun.solution.realization, sun.state.fab)  # automatic: the printer's
+    size = size_of(sun.solution, sun.state.fab)  # automatic: the printer's
     assert size >= 150.0 and f" mm at {size:.0f} mm" in fab.bound.content
     assert "Continuous-motion bound" in fab.bound.content
     assert "approximate" in fab.bound.content
@@ -147,21 +147,26 @@ def test_export_zip_has_parts_and_a_verified_report(tv8):
     assert name.startswith("paraloop-TV8") and name.endswith(".zip"), tv8.notifications
     with zipfile.ZipFile(io.BytesIO(data)) as zf:
         names = set(zf.namelist())
-        plates = json.loads(zf.read("report.json"))["print_layout"]["plates"]
-        assert names == PART_FILES | {f"paraloop_plate{k}.3mf" for k in range(2, plates + 1)}
         report = json.loads(zf.read("report.json"))
         result = json.loads(zf.read("paraloop-result.json"))
+        printed = json.loads(zf.read("result.json"))
+        plates = report["print_layout"]["plates"]
+        assert names == FIXED_FILES | {f"{p['name']}.stl" for p in report["parts"]} | {
+            f"paraloop_plate{k}.3mf" for k in range(2, plates + 1)}
         assert zf.read("assembly.glb")[:4] == b"glTF" and len(zf.read("link_0.stl")) > 1000
-    assert result["format"] == "paraloop-result"
-    ver = report["verification"]
-    sz = report["sizing"]  # automatic size for the generic printer, as `paraloop export`
-    assert ver["ok"] and sz["chosen"] == "auto" and all(sz["fits_bed"])
-    assert report["walls"]["ok"] and report["spec"]["size_mm"] == sz["size_mm"]
-    assert report["grounding"]["link"] == 3  # grounded by default: the column that clears
-    assert f"Size {sz['size_mm']:.0f} mm" in tv8.fabrication.verification.content
+    # the design's result, and the printed loop's (realized again for real joints)
+    assert result["format"] == printed["format"] == "paraloop-result"
+    assert printed["loop"] == report["choice"]["loop"]
+    ver, sz = report["verification"], report["sizing"]
+    assert ver["ok"] and report["walls"]["ok"] and sz["printer"] == "generic"
+    assert report["base"]["stands"] and all(p["fits_bed"] for p in
+                                            report["print_layout"]["parts"])
     assert tv8.fabrication.report == report
     text = tv8.fabrication.verification.content
-    assert "ok" in text and f"{ver['min_gap_mm']:.3f} mm" in text
+    assert f"**Size {sz['size_mm']:.0f} mm**" in text and "ok" in text
+    assert f"{min(sz['bar_width_mm']):.1f} - {max(sz['bar_width_mm']):.1f} mm wide" in text
+    assert f"{ver['min_non_adjacent_gap_mm']:.1f} mm over the whole cycle" in text
+    assert report["choice"]["note"] in text and "stands on its base" in text
 
 
 def test_export_failures_keep_the_design(tv8):
@@ -171,9 +176,9 @@ def test_export_failures_keep_the_design(tv8):
     click(tv8.fabrication.export)
     wait_long(tv8)
     title, body, error = tv8.notifications[-1]
-    # the profile's minimum, named with the constraint that sets it
-    assert error and title == "Export failed" and "needs at least 240 mm" in body
-    assert "bar-boss clearance" in body
+    # every candidate named with why it does not fit at that size
+    assert error and title == "Export failed" and "at 50 mm" in body
+    assert "no realization of this design can be printed with real joints" in body
     assert len(tv8.downloads) == n and not tv8.fabrication.progress.visible
     assert tv8.state.design is before and tv8.solution is sol and tv8.error is None
     # without a realization: the result JSON only, and a notification saying so
@@ -189,16 +194,11 @@ def test_export_failures_keep_the_design(tv8):
     assert "no realization" in tv8.notifications[-1][1] and not tv8.scene.spaces
 
 
-def test_export_with_carved_parts(sun):
-    inputs = sun.fabrication.inputs
-    inputs["resolution"].value = 64
-    inputs["order"].value = "end first"
-    inputs["carved_parts"].value = True
-    click(sun.fabrication.export)
-    wait_long(sun)
-    report = sun.fabrication.report
-    assert report is not None, sun.notifications
-    assert report["verification"]["ok"] and sum(report["carving"]["meshed"]) >= 4
-    pairs = [(o["target"], o["source"]) for o in report["carving"]["operations"]
-             if o["kind"] == "pair"]
-    assert pairs[:2] == [(3, 2), (3, 4)]
+def test_print_in_place_is_refused_with_the_reason(tv8):
+    n = len(tv8.downloads)
+    tv8.fabrication.inputs["print_in_place"].value = True
+    click(tv8.fabrication.export)
+    wait_long(tv8)
+    title, body, error = tv8.notifications[-1]
+    assert error and title == "Export failed" and "print-in-place needs" in body
+    assert "--joints m3" in body and len(tv8.downloads) == n

@@ -4,6 +4,7 @@ an edit even while a realization search runs) and the restore offer."""
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import threading
@@ -61,6 +62,9 @@ def test_save_export_and_upload(studio, tmp_path):
     # its own autosave: the opened file's unsaved work is not overwritten
     assert studio.state.autosave_path != opened
     assert studio.state.autosave_path.parent == autosave_dir()
+    # keyed by content: another upload named good.json gets another autosave
+    key = hashlib.sha256(json.dumps(d).encode()).hexdigest()[:12]
+    assert studio.state.autosave_path.name == f"upload-good-{key}.json"
     assert np.allclose(studio.scene.gizmos[3].position, [0.7, 0.5, 0.8])
     assert studio.error is None and studio.solution.design.name == "uploaded"
 

@@ -18,8 +18,8 @@ import argparse
 from pathlib import Path
 
 from app.cli import outputs
-from app.cli.export import solve_realized
 from app.cli.outputs import EXIT_OK
+from app.cli.solve import solve_realized
 from app.exports import animation_keyframes
 from paraloop_core import pipeline, printed
 from paraloop_core.design import Design
@@ -36,7 +36,7 @@ def check_out(out: Path, design: Path, force: bool) -> None:
 
 def cmd_animate(args: argparse.Namespace) -> int:
     path = Path(args.design)
-    out = Path(args.out)
+    out = outputs.output_path(args.out, "--out")
     check_out(out, path, args.force)
     def work(design: Design, sol: pipeline.Solution) -> tuple[bytes, float, str]:
         if args.printed:  # the loop as `paraloop export` prints it, on its base

@@ -134,6 +134,7 @@ class Runner:
         return self
 
     def __exit__(self, *exc_info: object) -> None:
+        outputs.seen(sys.exc_info()[1])  # a Ctrl-C unwinding: let the clean-up finish
         for part in (self._client, self._cluster):
             if part is not None:
                 # a failure to shut down must not hide the run's own error (or Ctrl-C)

@@ -17,17 +17,14 @@ from __future__ import annotations
 
 import argparse
 import sys
-from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 from typing import TypeVar
 
 from app.cli import outputs
 from app.cli.outputs import EXIT_NOT_REALIZED, EXIT_OK, EXIT_REFUSED
-from paraloop_core import design as design_mod
-from paraloop_core import pipeline, printed
-from paraloop_core.design import Design
-from paraloop_core.errors import ParaloopError, RealizationError
+from app.cli.solve import solve_realized
+from paraloop_core import printed
 from paraloop_core.fabrication import drive_mass, printable, profiles, rhino
 
 #: the fixed names written into DIR (plus the numbered ones of :data:`NUMBERED`)
@@ -46,34 +43,9 @@ def check_out(out: Path, force: bool) -> None:
             raise outputs.OutputError(f"{old}: already exists (use --force to overwrite)")
 
 
-def solve_realized(path: Path, work: Callable[[Design, pipeline.Solution], T]
-                   ) -> tuple[int, T | None]:
-    """Load and solve the design at ``path`` (its realization enabled) and run ``work(design,
-    solution)`` on the realized one: ``(EXIT_OK, value)``, or the exit code after one error
-    line (not realized: 3; refused input: 2) and None. Shared by ``export`` and ``animate``."""
-    try:
-        design = design_mod.load_design(path)
-        if not design.realization.enabled:
-            raise ParaloopError("the design has no realization (enable it in the design file)",
-                                "bad-parameters")
-        sol = pipeline.solve(design)
-        if sol.realization is None:
-            reason = (sol.realization_report or {}).get("reason", "no reason given")
-            print(f"error: {path}: no collision-free realization found "
-                  f"({outputs.one_line(reason)})", file=sys.stderr)
-            return EXIT_NOT_REALIZED, None
-        return EXIT_OK, work(design, sol)
-    except RealizationError as exc:
-        print(f"error: {path}: {outputs.one_line(exc)}", file=sys.stderr)
-        return (EXIT_REFUSED if exc.reason == "bad-parameters" else EXIT_NOT_REALIZED), None
-    except ValueError as exc:  # ParaloopError and any other bad-input ValueError
-        print(f"error: {path}: {outputs.one_line(exc)}", file=sys.stderr)
-        return EXIT_REFUSED, None
-
-
 def cmd_export(args: argparse.Namespace) -> int:
     path = Path(args.design)
-    out = Path(args.out)
+    out = outputs.output_path(args.out, "--out")
     check_out(out, args.force)
     try:
         if args.rhino:
@@ -88,14 +60,18 @@ def cmd_export(args: argparse.Namespace) -> int:
     if result is None:
         return code
     files, report, _ = result
-    outputs.write_files(out, files)
+    try:
+        outputs.write_files(out, files)
+    except OSError as exc:  # checked before the work; a disk filled up since
+        print(f"error: {out}: cannot write ({outputs.one_line(exc)})", file=sys.stderr)
+        return EXIT_REFUSED
     for warning in report["warnings"]:
         print(f"warning: {path}: {outputs.one_line(warning)}", file=sys.stderr)
     print(f"{path} -> {out}: {len(files)} files; {summary_line(report)}")
     print(f"{path}: {report['choice']['note']}")
     print(f"{path}: {drive_mass.drive_line(report['drive'])}")
     if "physics" in report:
-        from app.cli.simulate import summary  # simulate's module imports this one
+        from app.cli.simulate import summary  # physics only when asked
 
         print(f"{path}: {summary(report['physics'])}")
         if not report["physics"]["ok"]:

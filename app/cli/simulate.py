@@ -20,8 +20,8 @@ from dataclasses import replace
 from pathlib import Path
 
 from app.cli import outputs
-from app.cli.export import solve_realized
 from app.cli.outputs import EXIT_NOT_REALIZED, EXIT_OK
+from app.cli.solve import solve_realized
 from paraloop_core import pipeline, printed
 from paraloop_core.design import Design
 from paraloop_core.fabrication import printable

@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import json
 import time
-from pathlib import Path
 
 import numpy as np
 
@@ -24,7 +23,7 @@ NAMES = ("fig16.png", "fig16.csv", "fig16_summary.json")
 
 
 def cmd_evolution(args: argparse.Namespace) -> int:
-    out = Path(args.out)
+    out = outputs.output_path(args.out, "--out")
     outputs.check_dir_target(out, NAMES, args.force)  # before the (long) run
     with batch.Runner.from_args(args) as runner:
         res = fig16.run(args.starts, args.targets, args.seed, runner.workers,

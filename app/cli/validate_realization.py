@@ -7,7 +7,6 @@ import csv
 import functools
 import io
 import time
-from pathlib import Path
 
 from app.cli import batch, outputs
 from paraloop_core.validation import table1
@@ -31,7 +30,7 @@ def format_table(summary: dict[str, dict]) -> str:
 
 def cmd_realization(args: argparse.Namespace) -> int:
     """Exit status 0 when every loop is realized, 3 otherwise (2: refused arguments)."""
-    csv_path = Path(args.csv) if args.csv else None
+    csv_path = None if args.csv is None else outputs.output_path(args.csv, "--csv")
     if csv_path is not None:  # checked before the (long) run
         outputs.check_file_target(csv_path, args.force)
     start = time.perf_counter()

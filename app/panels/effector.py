@@ -20,7 +20,7 @@ import numpy as np
 import viser
 
 from app.exports import slug
-from app.state import user_data_dir
+from app.state import uploaded_meshes_dir, with_uploads
 from app.worker import FRAME, FULL
 from paraloop_core.design import Design, EndEffectorSettings
 from paraloop_core.errors import EndEffectorError
@@ -38,7 +38,7 @@ def store_mesh(name: str, content: bytes) -> Path:
     """Save uploaded mesh bytes as ``meshes/<name>-<hash><suffix>`` in the user data folder;
     the same content keeps its file, so designs referring to it stay valid."""
     p = Path(name)
-    folder = user_data_dir() / "meshes"
+    folder = uploaded_meshes_dir()
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / f"{slug(p.stem)}-{hashlib.sha256(content).hexdigest()[:12]}{p.suffix.lower()}"
     if not path.exists():
@@ -149,7 +149,9 @@ class EffectorPanel:
         if settings is not None:
             settings = dataclasses.replace(settings, **changes)
         if settings != studio.state.design.end_effector:
-            studio.state.edit(lambda d: dataclasses.replace(d, end_effector=settings), merge)
+            # an uploaded mesh is found among the uploads (Design.mesh_dirs), never by its path
+            studio.state.edit(lambda d: dataclasses.replace(
+                with_uploads(d) if body == "Mesh" else d, end_effector=settings), merge)
             studio.request(FULL, sync=sync)
 
     def _upload(self, event: Any) -> None:

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from paraloop_core.algebra import dq, exact, poly
+from paraloop_core.algebra import dq, exact, newton, poly
 from paraloop_core.errors import NonGenericMotionError
 from paraloop_core.tolerance import TOL
 
@@ -276,11 +276,6 @@ def all_factorizations_batch(c_monic: np.ndarray) -> Factorizations:
     return Factorizations(_unconditioned(fs, a, b, length), quads, code)
 
 
-#: Unknowns of a rotation factor in :func:`refine_cubic_factors` (the dual scalar stays 0).
-_FREE = np.array([0, 1, 2, 3, 5, 6, 7])
-_UNIT = np.eye(8)[_FREE][:, None, :]  # (7, 1, 8) constant polynomials
-
-
 def refine_cubic_factors(h: np.ndarray, c_monic: np.ndarray, steps: int = 2) -> np.ndarray:
     """Newton steps on ``C = (t - h0)(t - h1)(t - h2)`` for factors ``h`` ``(..., 3, 8)`` of
     monic cubics ``c_monic`` ``(..., 4, 8)`` (broadcasting).
@@ -292,16 +287,7 @@ def refine_cubic_factors(h: np.ndarray, c_monic: np.ndarray, steps: int = 2) -> 
     """
     h = np.array(h, dtype=np.float64)
     for _ in range(steps):
-        lin = poly.linear(h)  # (..., 3, 2, 8)
-        l0, l1, l2 = (lin[..., i, None, :, :] for i in range(3))
-        r = c_monic - poly.mul(poly.mul(l0, l1), l2)[..., 0, :, :]
-        # d C / d h_i e_k = -(L_0..L_{i-1}) e_k (L_{i+1}..L_2), e_k the free unit coefficients
-        cols = np.concatenate([-poly.mul(_UNIT, poly.mul(l1, l2)),
-                               -poly.mul(poly.mul(l0, _UNIT), l2),
-                               -poly.mul(poly.mul(l0, l1), _UNIT)], axis=-3)  # (..., 21, 3, 8)
-        jac = np.swapaxes(cols.reshape(*cols.shape[:-2], 24), -1, -2)  # (..., 24, 21)
-        step = np.linalg.pinv(jac) @ r[..., :3, :].reshape(*r.shape[:-2], 24)[..., None]
-        h[..., _FREE] += step[..., 0].reshape(*h.shape[:-2], 3, 7)
+        h[..., newton.FREE] += newton.cubic_step(h, c_monic)
         h = clean_factor(h)
     return h
 

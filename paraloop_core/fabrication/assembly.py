@@ -44,7 +44,8 @@ class Assembly:
     """``parts`` (links 0..5 first, then the printed pieces and the base), ``scale`` (mm per
     design unit), ``joints``, the loop's ``joint_factors`` (design units), the sizing
     ``plan``, the ``printer`` and joint ``kind``, the metal ``hardware``, and the ``slack``
-    (mm) of each link's print flat (< 0: not cut flat, walls would break)."""
+    (mm) of each link's print flat (< 0: cut deeper than its bar's face by
+    :func:`flat.lift`, the bar printed over support)."""
 
     parts: tuple[Part, ...]
     scale: float
@@ -96,20 +97,20 @@ def _link(plan: sizing.Plan, i: int, bars: np.ndarray, layouts: tuple[Joint, ...
     extra, caps = extras.get(i, (None, []))
     c = printer.clearance_mm
 
-    def make(d: np.ndarray, cut: bool = True, n: int = parts.SEGMENTS) -> Part:
-        return parts.link_part(i, bars, r, d, layouts, c, extra, caps, cut, n)
+    def make(d: np.ndarray, lift: float | None, n: int = parts.SEGMENTS) -> Part:
+        return parts.link_part(i, bars, r, d, layouts, c, extra, caps, lift, n)
 
     sides = [(layouts[i], False), (layouts[(i - 1) % 6], True)]
     main = (bars[0][0], bars[-1][1])
     if down is None:
         down, slack = layout.choose_down(
-            main, r, sides, printer, lambda d, cut: make(d, cut, TRIAL_SEGMENTS).manifold,
+            main, r, sides, printer, lambda d, lift: make(d, lift, TRIAL_SEGMENTS).manifold,
             None if extra is None else _faces(extra))
     else:
         level = float(np.max(bars.reshape(-1, 3) @ down)) + r * sizing.APOTHEM
         slack = flat.wall_slack(down, level, sides, printer.wall_mm)
     for more in RETESSELLATE:  # another tessellation where a boolean pinched the solid
-        part = make(down, bool(slack >= 0), parts.SEGMENTS + more)
+        part = make(down, flat.lift(slack), parts.SEGMENTS + more)
         if not parts.pinched(part.manifold):
             break
     return part, float(slack)

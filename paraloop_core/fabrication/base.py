@@ -368,6 +368,8 @@ def plate_part(b: Base, wall_mm: float, segments: int = 96) -> Part:
     at_top = b.top + (float(b.top @ up) - top - socket_h) * d
     socket = parts.cylinder(at_top, b.bottom, socket_r).trim_by_plane(tuple(up), b.table)
     solid = (solid + socket) - parts.cylinder(at_top - 5 * d, b.bottom + 5 * d, r_rod)
+    if parts.pinched(solid) and segments < 102:  # a boolean pinched two vertices onto one
+        return plate_part(b, wall_mm, segments + 2)  # point: another tessellation
     parts.check_solid(solid, "base plate")
     mid = b.frame @ np.r_[b.center, b.table + b.thickness / 2]
     caps = np.array([[mid, mid], [at_top, b.bottom]])

@@ -9,7 +9,9 @@ joint axis is a straight line, so along a boss the distance to the flat is linea
 ends decide (:func:`depths`). A bar of corner radius ``r`` has its flat ``r sqrt(3) / 2``
 below its axis, which passes through the link's joint points: the flat keeps every wall when
 that is at least the deepest point a wall needs (:func:`least_depth`, minimised over the
-turns), which :mod:`sizing` uses to size the bars and :mod:`layout` to pick the turn.
+turns), which :mod:`sizing` uses to size the bars and :mod:`layout` to pick the turn. Where
+the room between the links does not allow so thick a bar, the link is cut deeper
+(:func:`lift`): it stands on its bosses' cut faces and its bar prints over support.
 """
 
 from __future__ import annotations
@@ -20,6 +22,9 @@ from paraloop_core.fabrication.joints import Joint
 
 #: Turns about the bar tried for its print flat (degrees).
 TURNS_DEG = np.arange(0.0, 360.0, 10.0)
+#: Room (mm) past the deepest wall where a link is cut below its bar's face (:func:`lift`):
+#: two layers, so that the wall is not the minimum exactly.
+LIFT_ROOM_MM = 0.4
 
 
 def down_candidates(bar: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
@@ -65,3 +70,10 @@ def least_depth(bar: tuple[np.ndarray, np.ndarray], joints: list[tuple[Joint, bo
     keeps every wall of ``joints``: the bar's flat must lie at least this far down."""
     downs = down_candidates(bar)
     return float(np.min(depths(downs, joints, wall) - downs @ np.asarray(bar[0], float)))
+
+
+def lift(slack: float) -> float:
+    """How far (mm) below its bar's down face a link whose print flat has ``slack`` is cut:
+    0 where the walls allow the bar's face, else past the deepest wall by
+    :data:`LIFT_ROOM_MM` (the bosses' cut faces stand on the bed, the bar over support)."""
+    return 0.0 if slack >= 0 else LIFT_ROOM_MM - float(slack)

@@ -211,8 +211,11 @@ def layout(index: int, origin: np.ndarray, far: np.ndarray, axis: np.ndarray,
         screw, pieces = _screw_pieces(index, fastener_of(kind), s0, s3, m, gap)
     elif kind == "printed-pin":
         head = boss - 0.5
-        pieces = [Piece(s0 - profiles.PRINTED_HEAD_H_MM, s0, head, "pin head", printed=True),
-                  Piece(s0, s3 + c + profiles.PRINTED_CAP_DEPTH_MM, d / 2, "pin",
+        # the head stands the clearance off link j's boss as the cap off link j+1's (the
+        # room cut for it then ends at the boss's face, not c inside it)
+        pieces = [Piece(s0 - c - profiles.PRINTED_HEAD_H_MM, s0 - c, head, "pin head",
+                        printed=True),
+                  Piece(s0 - c, s3 + c + profiles.PRINTED_CAP_DEPTH_MM, d / 2, "pin",
                         printed=True),
                   Piece(s3 + c, s3 + c + profiles.PRINTED_CAP_H_MM, head, "pin cap",
                         printed=True)]

@@ -59,11 +59,12 @@ def support(vertices: np.ndarray, faces: np.ndarray, down: np.ndarray) -> tuple[
 def choose_down(bar: tuple[np.ndarray, np.ndarray], radius: float,
                 joints: list[tuple[Joint, bool]], printer: profiles.Printer,
                 build, more: np.ndarray | None = None) -> tuple[np.ndarray, float]:
-    """``(down, slack)``: the print flat of a link (module docstring). ``build(down, cut)``
-    makes the coarse part for a candidate (a manifold), cut flat or not; among the candidates
-    whose cut keeps every wall (:func:`flat.wall_slack` >= 0), or else a few turns built
-    uncut, and the unit directions ``more`` ``(M, 3)`` (an end-effector's faces), the one
-    with the least support area wins (ties: the lower part); ``slack`` < 0: not to be cut."""
+    """``(down, slack)``: the print flat of a link (module docstring). ``build(down, lift)``
+    makes the coarse part for a candidate (a manifold), cut ``lift`` mm below the bar's face
+    (:func:`flat.lift`; None: not cut); among the candidates whose cut at the bar's face
+    keeps every wall (:func:`flat.wall_slack` >= 0), or else a few turns cut deeper, and the
+    unit directions ``more`` ``(M, 3)`` (an end-effector's faces, not cut), the one with the
+    least support area wins (ties: the lower part)."""
     downs = flat.down_candidates(bar)
     if more is not None:
         downs = np.vstack([downs, np.asarray(more, float).reshape(-1, 3)])
@@ -78,7 +79,7 @@ def choose_down(bar: tuple[np.ndarray, np.ndarray], radius: float,
     figures = {}  # trial: (support area, height)
     for k in trials:
         try:
-            mesh = build(downs[k], bool(slack[k] >= 0)).to_mesh()
+            mesh = build(downs[k], flat.lift(slack[k]) if k < turns else None).to_mesh()
         except FabricationError:  # a cut of this trial leaves it in pieces: not this one
             continue
         v = mesh.vert_properties[:, :3]

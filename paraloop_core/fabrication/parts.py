@@ -162,13 +162,14 @@ def fillet(j: Joint, upper: bool, bar: tuple[np.ndarray, np.ndarray], radius: fl
 
 def link_part(i: int, bars: np.ndarray, radius: float, down: np.ndarray,
               joints: tuple[Joint, ...], printer_c: float, extra: m3d.Manifold | None = None,
-              extra_capsules: list[tuple] = (), flat: bool = True,
+              extra_capsules: list[tuple] = (), lift: float | None = 0.0,
               segments: int = SEGMENTS) -> Part:
     """Link ``i``: its ``bars`` ``(n, 2, 3)`` (mm, from ``S_i`` to ``E_i``; with an
     end-effector ``S_3 L``, ``R E_3``) of hex corner ``radius`` with flat face ``down``, its
     joints ``i - 1`` (upper side) and ``i`` (lower side), ``extra`` solids joined to it (P,
-    a carved body), clearance ``printer_c``; ``flat``: cut at the print flat (not with an
-    ``extra``); ``segments`` of round solids (fewer for trial parts). Raises
+    a carved body), clearance ``printer_c``; cut at the print flat ``lift`` mm below the bar's
+    down face (> 0 where a bore needs the cut deeper: the bar then prints over support; None
+    or an ``extra``: not cut); ``segments`` of round solids (fewer for trial parts). Raises
     :class:`FabricationError` when the cuts leave it in pieces."""
     lower, upper = joints[i], joints[(i - 1) % 6]
     body = m3d.Manifold.batch_boolean([hex_bar(p0, p1, radius, down) for p0, p1 in bars],
@@ -195,10 +196,11 @@ def link_part(i: int, bars: np.ndarray, radius: float, down: np.ndarray,
         out = 3.0 * radius + 10.0 if j.kind == "rod" else \
             outward(vec, away, radius, j.reach + EPS_MM) + 1.0
         body = body - holes(j, up, out, n)
-    # the print flat: nothing past the bar's down face
+    # the print flat: nothing past the bar's down face (or ``lift`` below it)
     face = np.asarray(down, float)
     level = float(np.max(bars.reshape(-1, 3) @ face)) + radius * np.sqrt(3.0) / 2
-    if flat and extra is None:
+    if lift is not None and extra is None:
+        level += max(float(lift), 0.0)
         body = body.trim_by_plane(tuple(-face), -level)
     body = _one_piece(body, i)
     for j, up in ((lower, False), (upper, True)):

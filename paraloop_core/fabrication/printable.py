@@ -268,9 +268,9 @@ def _ground(asm: Assembly, opts: Options) -> tuple[Assembly, base.Base | None, l
     for cap, flat_ok in ((True, False), (False, True), (False, False)):
         if (cap, flat_ok) in found:
             return (*found[cap, flat_ok], warnings + (
-                [] if flat_ok else ["the two links on the grounding rod cannot lie flat on "
-                                    "the bed without breaking into the rod's bore: they "
-                                    "print with supports"]))
+                [] if flat_ok else ["the two links on the grounding rod cannot lie on their "
+                                    "bars' faces without breaking into the rod's bore: they "
+                                    "stand on their bosses, the bars print with supports"]))
     return asm, None, warnings + ["no grounding rod clears the moving links over the whole "
                                   "cycle: exported without a base (hold it by a link, or hang "
                                   "it)"]

@@ -271,7 +271,10 @@ def at_scale(real, b: Bounds, k: float, printer: Printer, material: Material, ki
         top = np.full(6, rcap)
         plan = _settle(real, b, k, printer, material, kind, eps, floor, top, bmin,
                        np.full((6, 6), stiffness.MIN_GAP_MM), matrix, rest, level < 3)
-        return None if plan is None else replace(plan, level=level)
+        # the gaps required are those kept: the least gap (the warning says the deflections
+        # may be larger); the verification and the rod's clearance check these
+        return None if plan is None else replace(
+            plan, level=level, gaps=np.full((6, 6), stiffness.MIN_GAP_MM))
     for delta in DEFLECTION_STEPS:
         # the torque of bars up to THICKER x the radius they need, which needs the torque:
         # a few rounds of the fixed point (monotone: heavier parts need thicker bars)

@@ -84,8 +84,9 @@ def radius_for(deflection_mm: float, lengths_mm: np.ndarray, modulus_gpa: float,
     a = 5.0 * density_g_cm3 * 1e-6 * G * 1.5 * np.sqrt(3.0) * length**4 / (384.0 * e * i_per)
     b = abs(torque_nm) * 1e3 * length**2 / (8.0 * e * i_per)
     d = float(deflection_mm)
-    x = np.where(b > 0, (np.sqrt(a * a + 4.0 * b * d) - a) / (2.0 * np.maximum(b, 1e-300)),
-                 d / np.maximum(a, 1e-300))
+    # the positive root of b x^2 + a x = d in the form without cancellation (a small torque
+    # made (sqrt(a^2 + 4bd) - a) / 2b lose every digit)
+    x = 2.0 * d / np.maximum(np.sqrt(a * a + 4.0 * b * d) + a, 1e-300)
     return 1.0 / np.sqrt(x)
 
 

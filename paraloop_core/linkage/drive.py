@@ -13,7 +13,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.polynomial import polynomial as npoly
 
 from paraloop_core.algebra import dq, poly
 from paraloop_core.linkage import loops
@@ -117,18 +116,42 @@ def joint_rates(jf: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def gear(a: np.ndarray, b: np.ndarray, m: int, theta: np.ndarray) -> tuple[np.ndarray, ...]:
-    """``t`` ``(T,)``, ``g``, ``g'`` ``(T, 6)`` of motor m at motor angles ``theta`` ``(T,)``."""
-    half = 0.5 * theta
+    """``t`` ``(T,)``, ``g``, ``g'`` ``(T, 6)`` of motor m at motor angles ``theta`` ``(T,)``
+    (views of :func:`gear_rows`)."""
+    t, g, gp = gear_rows(a, b, m, theta)
+    return t, g.T, gp.T
+
+
+def gear_rows(a: np.ndarray, b: np.ndarray, m: int, theta: np.ndarray
+              ) -> tuple[np.ndarray, ...]:
+    """``t`` ``(T,)``, ``g``, ``g'`` ``(6, T)`` (joints first: long inner loops).
+
+    With ``s = t - a_m = -b_m cot(theta/2)`` and ``h_j^2 = (s - a_j + a_m)^2 + b_j^2``:
+    ``g_j = sign_j b_j h_m^2 / (b_m h_j^2)`` (``loops.JOINT_SIGN``). All of it is scaled by
+    ``h_m = b_m / |sin(theta/2)|`` (``c = s / h_m``, ``e = b_m / h_m`` in [-1, 1]): no
+    overflow, no square root, home (theta = 0, t = -inf) included."""
+    half = 0.5 * np.asarray(theta, dtype=np.float64)
+    sn, cs = np.sin(half), np.cos(half)
     with np.errstate(divide="ignore"):  # theta = 0: home, t = -inf
-        t = np.where(np.sin(half) == 0.0, -np.inf, a[m] - b[m] * np.cos(half) / np.sin(half))
-    fin = np.isfinite(t)[:, None]
-    s = np.where(fin, t[:, None] - a[m], 0.0)
-    delta = a - a[m]
-    hm, hj = np.hypot(s, b[m]), np.hypot(s - delta, b)
-    rho, w = np.where(fin, (hm / hj) ** 2, 1.0), s / hj  # D_m / D_j
-    nd = np.where(fin, delta * w * w + (b[m] ** 2 - b**2 - delta**2) * (w / hj)
-                  - delta * (b[m] / hj) ** 2, delta)  # N_j / D_j
-    return t, loops.JOINT_SIGN * (b / b[m]) * rho, -loops.JOINT_SIGN * (b / b[m] ** 2) * rho * nd
+        t = np.where(sn == 0.0, -np.inf, a[m] - b[m] * cs / sn)
+    e = np.abs(sn)
+    c = -cs * np.copysign(1.0, sn)
+    ih = e / b[m]  # 1 / h_m
+    delta, bm = (a - a[m])[:, None], b[:, None]
+    u = c - delta * ih
+    bi = bm * ih
+    u *= u
+    bi *= bi
+    u += bi
+    rho = np.divide(1.0, u, out=u)  # D_m / D_j = h_m^2 / h_j^2
+    # N_j / D_j = (delta (c^2 - e^2) + (b_m^2 - b_j^2 - delta^2) c / h_m) rho
+    nd = delta * (c * c - e * e)
+    nd += (b[m] ** 2 - bm**2 - delta**2) * (c * ih)
+    nd *= rho
+    g = (loops.JOINT_SIGN * (b / b[m]))[:, None] * rho
+    nd *= g
+    nd *= -1.0 / b[m]
+    return t, g, nd
 
 
 def _ratio_critical(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -154,17 +177,38 @@ def peak_speed_ratios(jf: np.ndarray) -> np.ndarray:
     return ((bj / bm) * np.where(fin, (np.hypot(sf, bm) / hj) ** 2, 1.0)).max(axis=-1)
 
 
+def _conv(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Products of polynomials ``(..., p)``, ``(..., r)`` (ascending) -> ``(..., p + r - 1)``."""
+    out = np.zeros(x.shape[:-1] + (x.shape[-1] + y.shape[-1] - 1,))
+    for k in range(y.shape[-1]):  # a loop over coefficients, not samples
+        out[..., k:k + x.shape[-1]] += x * y[..., k:k + 1]
+    return out
+
+
 def _accel_critical(a: np.ndarray, b: np.ndarray, m: int) -> np.ndarray:
-    """t where |g_j'| may peak (real parts: spurious candidates only add samples)."""
+    """t where |g_j'| may peak (real parts: spurious candidates only add samples): roots of
+    the six numerators of ``d g_j' / ds`` (degree <= 5, ``s = t - a_m``), all at once."""
+    # joints with the same norm root (angle-symmetric loops pair them) up to rounding share
+    # their roots: computed once, so rounding cannot split them into two samples
+    near = np.abs(a[:, None] - a) + np.abs(b[:, None] - b) <= 1e-12 * (np.abs(a) + b).max()
+    first = ~np.tril(near, -1).any(axis=1)
+    a_j, b_j = a[first], b[first]
+    d, bm2, bj2, one = a_j - a[m], b[m] ** 2, b_j**2, np.ones(len(a_j))
+    nd = _conv(np.stack([-d * bm2, bm2 - bj2 - d * d, d], -1), np.array([bm2, 0.0, 1.0]))
+    q = (_conv(nd[:, 1:] * np.arange(1.0, 5.0), np.stack([d * d + bj2, -2.0 * d, one], -1))
+         - 2.0 * _conv(nd, np.stack([-2.0 * d, 2.0 * one], -1)))
+    big = np.abs(q) > 1e-13 * np.maximum(np.abs(q).max(axis=1, keepdims=True), 1e-300)
+    deg = np.where(big.any(axis=1), q.shape[1] - 1 - np.argmax(big[:, ::-1], axis=1), 0)
     out = [np.zeros(0)]
-    for j in range(6):  # six small polynomials, not a loop over samples
-        d = a[j] - a[m]
-        nd = npoly.polymul([-d * b[m] ** 2, b[m] ** 2 - b[j] ** 2 - d * d, d], [b[m] ** 2, 0, 1])
-        q = npoly.polysub(npoly.polymul(npoly.polyder(nd), [d * d + b[j] ** 2, -2.0 * d, 1.0]),
-                          2.0 * npoly.polymul(nd, [-2.0 * d, 2.0]))
-        q = npoly.polytrim(q, 1e-13 * max(np.abs(q).max(), 1e-300))
-        if len(q) > 1:
-            out.append(a[m] + npoly.polyroots(q).real)
+    for n in np.unique(deg[deg >= 1]):  # at most 5 degrees: companion matrices per degree
+        c = q[deg == n, : n + 1]
+        if n == 1:
+            out.append(a[m] - c[:, 0] / c[:, 1])
+            continue
+        comp = np.zeros((len(c), n, n))
+        comp[:, np.arange(1, n), np.arange(n - 1)] = 1.0
+        comp[:, :, -1] -= c[:, :-1] / c[:, -1:]
+        out.append(a[m] + np.linalg.eigvals(comp[:, ::-1, ::-1]).real.ravel())
     return np.concatenate(out)
 
 
@@ -177,7 +221,9 @@ def motor_angles(a: np.ndarray, b: np.ndarray, m: int, n: int) -> np.ndarray:
                         a[m] + _ratio_critical(a, b)[m].ravel(), _accel_critical(a, b, m)])
     th = np.mod(2.0 * np.arctan2(b[m], a[m] - t), TWO_PI)  # t = +-inf -> 0 (home)
     th = np.unique(np.concatenate([np.arange(n) * (TWO_PI / n), th[np.isfinite(th)]]))
-    return th[np.concatenate([[True], np.diff(th) > 1e-12])]  # near-duplicates add nothing
+    # near-duplicates add nothing (2 pi is home again); a step of 1e-12 rad would only turn
+    # the rounding of the schedule's x into its acceleration (the slope of x over the step)
+    return th[np.concatenate([[True], np.diff(th) > 1e-12]) & (TWO_PI - th > 1e-12)]
 
 
 def constant_speed(jf: np.ndarray, motor: int, cycle_time: float, samples: int = SAMPLES,

@@ -72,9 +72,9 @@ class _Coarse:
     def __init__(self, jf: np.ndarray, m: int):
         _, a, b = drive.norm_roots(jf)
         self.grid = schedule.schedule_grid(a, b, m, SEARCH_SAMPLES)
-        self.g = self.grid[1][: len(self.grid[0])]
+        self.g = self.grid.g[: len(self.grid.nodes)]
         caps = schedule.speed_caps(self.g, TWO_PI)
-        self.min_ratio = float(schedule.step_times(self.grid[0], caps).sum())
+        self.min_ratio = float(schedule.step_times(self.grid.nodes, caps).sum())
 
     def time(self, ratio: float, accel: float) -> float:
         """Fastest admissible cycle time."""

@@ -33,6 +33,7 @@ import itertools
 import numpy as np
 
 from paraloop_core.algebra import dq, poly
+from paraloop_core.errors import NonGenericMotionError
 from paraloop_core.tolerance import TOL
 
 _SPEAR = [1, 2, 3, 5, 6, 7]
@@ -54,7 +55,15 @@ def _check_factors(joint_factors: np.ndarray, length: float) -> np.ndarray:
         raise ValueError("joint_factors must be finite")
     pn = np.sqrt((jf[..., 1:4] ** 2).sum(axis=-1))
     if (pn <= TOL.zero * (1.0 + np.abs(jf).max(axis=-1))).any():
-        raise ValueError("a joint factor has no rotation axis (zero vector part)")
+        raise NonGenericMotionError("non-generic motion: a joint factor has no rotation axis "
+                                    "(zero vector part)", "translational-factor")
+    ratio = float((pn / np.sqrt((jf[..., :4] ** 2).sum(axis=-1))).min())
+    if not ratio > TOL.resolved:  # S would divide by a norm that is rounding noise
+        raise NonGenericMotionError(
+            f"non-generic motion within float64: a norm root lies {ratio:.1e} of its size from "
+            f"the real line (at least {TOL.resolved:g} needed), so a joint turns half a turn "
+            "faster than float64 can follow; move the poses apart or nearer each other",
+            "real-root")
     if not (np.isfinite(length) and length > 0):
         raise ValueError(f"length must be a positive number, got {length!r}")
     return jf

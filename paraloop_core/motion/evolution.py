@@ -318,9 +318,7 @@ def evolution_settings(options: dict) -> EvolutionSettings:
     ValueError) names the field (``field``) and the accepted range. The iteration budget
     ``starts * max_iterations`` is capped at 100000 (the time cap of a fit: about 10 ms per
     iteration with 8 poses, so at most about 15 minutes)."""
-    import math
-
-    from paraloop_core.errors import DesignFileError
+    from paraloop_core.errors import DesignFileError, shown, shown_key
 
     numbers = {"w0": (1.0, 1e6, False), "q": (0.0, 1.0, True), "tol": (1e-15, 1.0, False),
                "loop_ratio": (1.0, 1e6, True), "smooth_drive": (0.0, 1e6, False)}
@@ -332,20 +330,16 @@ def evolution_settings(options: dict) -> EvolutionSettings:
         raise DesignFileError("evolution", "must be an object")
     unknown = sorted((k for k in options if k not in allowed), key=str)
     if unknown:
-        key = str(unknown[0])[:40].encode("ascii", "backslashreplace").decode()
-        raise DesignFileError(key, f"unknown key {key!r} at evolution "
+        raise DesignFileError(shown_key(unknown[0]), f"unknown key {shown(unknown[0])} at "
+                              "evolution "
                               f"(allowed: {', '.join(sorted(allowed))})")
-
-    def shown(v: object) -> str:
-        text = repr(v) if isinstance(v, (bool, int, float, str, type(None))) else type(v).__name__
-        return (text if len(text) <= 40 else text[:37] + "...").encode(
-            "ascii", "backslashreplace").decode()
 
     opts = dict(options)
     for name, (lo, hi, open_lo) in numbers.items():
         v = opts.get(name)
         if name in opts and (isinstance(v, bool) or not isinstance(v, (int, float))
-                             or not math.isfinite(v) or (v <= lo if open_lo else v < lo)
+                             or (isinstance(v, float) and v != v)  # NaN; ints compare exactly
+                             or (v <= lo if open_lo else v < lo)
                              or (v >= hi if name == "q" else v > hi)):
             bracket = "(" if open_lo else "["
             close = ")" if name == "q" else "]"
@@ -359,7 +353,8 @@ def evolution_settings(options: dict) -> EvolutionSettings:
         if name in opts and not isinstance(opts[name], bool):
             raise DesignFileError(name, f"must be true or false, got {shown(opts[name])}")
     if "init" in opts and opts["init"] not in ("random", "four-pose"):
-        raise DesignFileError("init", f"must be 'random' or 'four-pose', got {shown(opts['init'])}")
+        raise DesignFileError("init", "must be \"random\" or \"four-pose\", got "
+                              f"{shown(opts['init'])}")
     idx = opts.get("four_pose_indices")
     if idx is not None:
         if (not isinstance(idx, (list, tuple)) or len(idx) != 4

@@ -221,12 +221,20 @@ def cyclic_order(t: np.ndarray) -> np.ndarray:
     return out
 
 
-def loop_gaps(c, t, direction, targets, inertia, ratio) -> tuple[int, ...]:
+def loop_gaps(c, t, direction, targets, inertia, ratio, samples: int = 1024) -> tuple[int, ...]:
     """Gaps i (target i -> i+1, closing gap excluded) whose arc along the cycle of ``c``
-    (``direction`` +-1) exceeds ``ratio`` times the chord: the loop phenomenon (Fig. 17)."""
-    u, s = closest.arc_table(c, inertia)
-    pos = np.interp(poly.t_to_param(t), u, s)
-    arcs = np.mod(direction * np.diff(pos), s[-1])
+    (``direction`` +-1) exceeds ``ratio`` times the chord: the loop phenomenon (Fig. 17).
+
+    Each gap's arc is the chord sum over ``samples`` parameters spread over that gap alone: a
+    loop the motion runs through quickly (a short ``u`` interval, much shorter than a cell of
+    a whole-cycle table) is still resolved. Chord sums only underestimate the arc.
+    """
+    u = poly.t_to_param(np.asarray(t, dtype=np.float64))
+    span = np.mod(direction * np.diff(u), 1.0)  # (m-1,)
+    uu = np.mod(u[:-1, None] + direction * span[:, None] * np.linspace(0.0, 1.0, samples), 1.0)
+    poses = poly.evaluate_pose(c, poly.param_to_t(uu))  # (m-1, samples, 8)
+    arcs = np.sum(np.sqrt(np.maximum(metric.distance_sq(poses[:, :-1], poses[:, 1:], inertia),
+                                     0.0)), axis=-1)
     chords = np.sqrt(metric.distance_sq(targets[:-1], targets[1:], inertia))
     return tuple(int(i) for i in np.flatnonzero(arcs > ratio * chords))
 

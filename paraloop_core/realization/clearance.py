@@ -73,11 +73,14 @@ def vsq(a: np.ndarray) -> np.ndarray:
 
 def segment_distance(p0: np.ndarray, p1: np.ndarray, q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
     """Distance ``(...)`` between segments ``[p0, p1]`` and ``[q0, q1]`` (points ``(..., 3)``,
-    broadcasting); exact for parallel and zero-length segments (clamped closest points)."""
-    d1, d2, r = np.broadcast_arrays(p1 - p0, q1 - q0, p0 - q0)
-    a, e, b = dot(d1, d1), dot(d2, d2), dot(d1, d2)
-    c, f = dot(d1, r), dot(d2, r)
-    tiny = TOL.zero * (a + e + dot(r, r)) + 1e-300
+    broadcasting); exact for parallel and zero-length segments (clamped closest points).
+    Computed per component (views ``(3, ...)``: long inner loops, no 3-wide reductions)."""
+    p0, p1, q0, q1 = (np.moveaxis(x, -1, 0) for x in np.broadcast_arrays(
+        *(np.asarray(x, dtype=np.float64) for x in (p0, p1, q0, q1))))
+    d1, d2, r = p1 - p0, q1 - q0, p0 - q0
+    a, e, b = _dot3(d1, d1), _dot3(d2, d2), _dot3(d1, d2)
+    c, f = _dot3(d1, r), _dot3(d2, r)
+    tiny = TOL.zero * (a + e + _dot3(r, r)) + 1e-300
     a_ok, e_ok = a > tiny, e > tiny
     den = a * e - b * b
     # Interior solution on the lines; parallel (den ~ 0) starts from s = 0 and clamps below.
@@ -90,8 +93,13 @@ def segment_distance(p0: np.ndarray, p1: np.ndarray, q0: np.ndarray, q1: np.ndar
     uc = np.clip(u, 0.0, 1.0)
     s = np.where(u != uc, np.clip((b * uc - c) / np.where(a_ok, a, 1.0), 0.0, 1.0), s)
     s = np.where(a_ok, s, 0.0)
-    diff = r + s[..., None] * d1 - uc[..., None] * d2
-    return np.sqrt(dot(diff, diff))
+    diff = r + s * d1 - uc * d2
+    return np.sqrt(_dot3(diff, diff))
+
+
+def _dot3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a . b`` of component-first vectors ``(3, ...)``."""
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
 def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:

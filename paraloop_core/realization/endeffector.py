@@ -17,6 +17,7 @@ bounding box; with ``simplify=False`` they are refused.
 
 from __future__ import annotations
 
+import stat
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -90,10 +91,7 @@ def polyhedron(vertices: np.ndarray, faces: np.ndarray, *, max_faces: int = MAX_
     f = inverse.reshape(-1)[f]
     used, f = np.unique(f, return_inverse=True)
     v, f = uniq[used], f.reshape(-1, 3)
-    tri = v[f]
-    area2 = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
-    size = float(np.ptp(v, axis=0).max())
-    degenerate = area2 <= TOL.residual * size**2
+    degenerate, size = _degenerate(v, f)
     if size <= 0 or np.any(degenerate):
         first = int(np.flatnonzero(degenerate)[0]) if size > 0 else 0
         raise EndEffectorError(f"{int(degenerate.sum()) if size > 0 else len(f)} faces have "
@@ -105,6 +103,14 @@ def polyhedron(vertices: np.ndarray, faces: np.ndarray, *, max_faces: int = MAX_
                                    "simplify it or allow the convex hull", "too-large")
         return _enclosing(v, max_faces)
     return Polyhedron(v, f.astype(np.int64))
+
+
+def _degenerate(v: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, float]:
+    """Faces ``(F,)`` of (near) zero area relative to the mesh's size, and that size."""
+    tri = v[f]
+    area2 = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    size = float(np.ptp(v, axis=0).max())
+    return area2 <= TOL.residual * size**2, size
 
 
 def _enclosing(v: np.ndarray, max_faces: int) -> Polyhedron:
@@ -123,12 +129,19 @@ def load_mesh(path: str | Path, *, max_faces: int = MAX_FACES, simplify: bool = 
     import trimesh
 
     path = Path(path)
-    if not path.is_file():
-        raise EndEffectorError(f"mesh file not found: {path}", "load")
+    try:
+        mode = path.stat().st_mode
+    except OSError as exc:
+        why = "not found" if isinstance(exc, FileNotFoundError) else exc.strerror
+        raise EndEffectorError(f"mesh file {why}: {path.name[:80]}", "load", "mesh") from exc
+    if not stat.S_ISREG(mode):
+        raise EndEffectorError(f"mesh {path.name[:80]} is not a regular file (a directory, "
+                               "FIFO or device)", "load", "mesh")
     try:
         mesh = trimesh.load(path, force="mesh", process=False)
     except Exception as exc:  # trimesh raises many types for unreadable files
-        raise EndEffectorError(f"cannot read mesh {path.name}: {exc}", "load") from exc
+        raise EndEffectorError(f"cannot read mesh {path.name[:80]}: {exc}", "load",
+                               "mesh") from exc
     faces = getattr(mesh, "faces", None)
     if faces is None or len(faces) == 0:
         raise EndEffectorError(f"mesh {path.name} has no triangle faces", "not-triangles")
@@ -170,7 +183,8 @@ def panel(width: float = 2.0, height: float = 1.0, thickness: float = 0.05) -> P
 def builtin(shape: str, scale: float = 1.0) -> Polyhedron:
     """Built-in shape ``"disc"`` (radius ``scale``) or ``"panel"`` (``2 scale x scale``)."""
     if not (np.isfinite(scale) and scale > 0):
-        raise EndEffectorError(f"scale must be positive, got {scale!r}", "bad-parameters")
+        raise EndEffectorError(f"scale must be positive, got {scale!r}", "bad-parameters",
+                               "scale")
     if shape == "disc":
         return disc(scale, 0.05 * scale)
     if shape == "panel":
@@ -182,7 +196,8 @@ def builtin(shape: str, scale: float = 1.0) -> Polyhedron:
 def scaled(p: Polyhedron, scale: float) -> Polyhedron:
     """P scaled about its body origin."""
     if not (np.isfinite(scale) and scale > 0):
-        raise EndEffectorError(f"scale must be positive, got {scale!r}", "bad-parameters")
+        raise EndEffectorError(f"scale must be positive, got {scale!r}", "bad-parameters",
+                               "scale")
     return Polyhedron(p.vertices * scale, p.faces)
 
 
@@ -199,7 +214,7 @@ def choose_anchors(home: Polyhedron, axes: np.ndarray, L: int | None = None,
     for name, idx in (("L", L), ("R", R)):
         if idx is not None and not (isinstance(idx, (int, np.integer)) and 0 <= idx < n):
             raise EndEffectorError(f"{name} must be a vertex index in 0..{n - 1}, got {idx!r}",
-                                   "bad-parameters")
+                                   "bad-parameters", name)
     lines = np.asarray(axes, np.float64)[[2, 3]]
     dist = np.linalg.norm(np.cross(home.vertices[None], lines[:, None, :3])
                           - lines[:, None, 3:], axis=-1)  # (2, V)
@@ -229,6 +244,14 @@ def attach(body: Polyhedron, reference: np.ndarray, joint_factors: np.ndarray,
         raise EndEffectorError(f"reference must be a finite pose (8,), got shape {ref.shape}",
                                "bad-parameters")
     home = Polyhedron(dq.transform_points(ref, body.vertices), body.faces)
+    degenerate, size = _degenerate(home.vertices, home.faces)
+    if np.any(degenerate):  # at its place, float64 rounding flattens P's faces
+        where = float(np.abs(home.vertices).max())
+        raise EndEffectorError(
+            f"P of size {float(np.ptp(body.vertices, axis=0).max()):.3g} placed {where:.3g} "
+            f"from the origin loses {int(degenerate.sum())} of its faces to float64 rounding: "
+            "scale P up or bring the poses nearer the origin (P needs a size of about 1e-8 of "
+            "that distance or more)", "degenerate", "scale")
     axes = loops.factor_axes(np.asarray(joint_factors, np.float64))
     left, right = choose_anchors(home, axes, L, R)
     return EndEffector(home.vertices, home.faces, home.edges, left, right, home.closed)
@@ -255,7 +278,7 @@ def initial_polyline(joint_factors: np.ndarray, anchors: np.ndarray,
     for i, v in fixed.items():
         if not (isinstance(i, (int, np.integer)) and 0 <= i < 6 and np.isfinite(v)):
             raise RealizationError(f"fixed entries must map 0..5 to finite positions, got "
-                                   f"{i!r}: {v!r}", "bad-parameters")
+                                   f"{i!r}: {v!r}", "bad-parameters", "fixed")
     q, u = axis_frames(joint_factors)
     # least squares over the seven difference vectors, linear in s (three rows each)
     terms = [(0, 1), (1, 2), (2, 6), (7, 3), (3, 4), (4, 5), (5, 0)]  # 6 = L, 7 = R

@@ -231,21 +231,42 @@ def chain_sweep(centre: np.ndarray, ends: list[np.ndarray], axes: np.ndarray,
     ``span(1, axis)``); telescoping the product, a point within ``radius`` of a given one moves
     at most ``sum_m 2 sin(min(delta_m, pi/2)) (dist(y_m, axis_m) + radius)`` (``y_m``: the point
     carried by the inner factors at the centre). Returns ``(move (C, P), moved (C, P, 3))``.
+
+    Written per component (arrays ``(comp, k, C)``: long inner loops; the certificate's branch
+    and bound spends its time here).
     """
-    delta = np.zeros(centre.shape[:2])
-    for end in ends:
-        rel = dq.qmul(end[..., :4], dq.qconj(centre[..., :4]))
-        delta = np.maximum(delta, np.arctan2(np.linalg.norm(rel[..., 1:], axis=-1),
-                                             rel[..., 0]))
-    chord = 2.0 * np.sin(np.minimum(delta, np.pi / 2))  # (k, C)
-    y = np.broadcast_to(points, (centre.shape[1],) + points.shape[1:])
-    move = np.zeros(y.shape[:2])
-    for m in reversed(range(len(centre))):  # innermost factor first (k <= 3)
-        ax = axes[m][:, None, :] if axes.ndim == 3 else axes[m]
-        rho = np.linalg.norm(np.cross(y, ax[..., :3]) - ax[..., 3:], axis=-1)
-        move += chord[m][:, None] * (rho + radius)
-        y = dq.transform_points(centre[m][:, None, :], y)
-    return move, y
+    c = np.moveaxis(centre, -1, 0)  # (8, k, C)
+    delta = np.zeros(c.shape[1:])
+    for end in ends:  # half angle swept: end * conj(centre), the rotation from centre to end
+        e = np.moveaxis(end, -1, 0)
+        w = e[0] * c[0] + e[1] * c[1] + e[2] * c[2] + e[3] * c[3]
+        vx = -e[0] * c[1] + e[1] * c[0] - e[2] * c[3] + e[3] * c[2]
+        vy = -e[0] * c[2] + e[1] * c[3] + e[2] * c[0] - e[3] * c[1]
+        vz = -e[0] * c[3] - e[1] * c[2] + e[2] * c[1] + e[3] * c[0]
+        delta = np.maximum(delta, np.arctan2(np.sqrt(vx * vx + vy * vy + vz * vz), w))
+    chord = 2.0 * np.sin(np.minimum(delta, np.pi / 2))[..., None]  # (k, C, 1)
+    ax = np.moveaxis(axes, -1, 0)[..., None]  # (6, k, 1) or (6, k, C, 1)
+    y = np.moveaxis(np.broadcast_to(points, (c.shape[2],) + points.shape[1:]), -1, 0)
+    move = np.zeros(y.shape[1:])  # y (3, C, P)
+    for m in reversed(range(c.shape[1])):  # innermost factor first (k <= 3)
+        a0, a1, a2, m0, m1, m2 = ax[:, m]
+        cx, cy, cz = y[1] * a2 - y[2] * a1 - m0, y[2] * a0 - y[0] * a2 - m1, \
+            y[0] * a1 - y[1] * a0 - m2
+        move += chord[m] * (np.sqrt(cx * cx + cy * cy + cz * cz) + radius)
+        # y <- (P y P~ + 2 D P~) / |P|^2 of the factor P + eps D, P = (w, v), D = (d0, dv):
+        # ((w^2 - |v|^2) y + 2 (v.y) v + 2 w v x y + 2 (w dv - d0 v - dv x v)) / |P|^2
+        w, v0, v1, v2, d0, e0, e1, e2 = c[:, m, :, None]
+        vv = v0 * v0 + v1 * v1 + v2 * v2
+        s, w2 = w * w - vv, 2.0 * w
+        vy2 = 2.0 * (v0 * y[0] + v1 * y[1] + v2 * y[2])
+        y = np.stack([
+            s * y[0] + vy2 * v0 + w2 * (v1 * y[2] - v2 * y[1])
+            + 2.0 * (w * e0 - d0 * v0 - (e1 * v2 - e2 * v1)),
+            s * y[1] + vy2 * v1 + w2 * (v2 * y[0] - v0 * y[2])
+            + 2.0 * (w * e1 - d0 * v1 - (e2 * v0 - e0 * v2)),
+            s * y[2] + vy2 * v2 + w2 * (v0 * y[1] - v1 * y[0])
+            + 2.0 * (w * e2 - d0 * v2 - (e0 * v1 - e1 * v0))]) / (w * w + vv)
+    return move, np.moveaxis(y, 0, -1)
 
 
 def try_motion_bound(joint_factors: np.ndarray, i: int, j: int,

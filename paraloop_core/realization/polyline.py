@@ -51,10 +51,11 @@ def shortest_polyline(
     fixed = dict(fixed or {})
     for i, v in fixed.items():
         if not (isinstance(i, (int, np.integer)) and 0 <= i < 6):
-            raise RealizationError(f"fixed vertex index must be 0..5, got {i!r}", "bad-parameters")
+            raise RealizationError(f"fixed vertex index must be 0..5, got {i!r}", "bad-parameters",
+                                   "fixed")
         if not np.isfinite(v):
             raise RealizationError(f"fixed position of E_{i} must be finite, got {v!r}",
-                                   "bad-parameters")
+                                   "bad-parameters", "fixed")
     q, u = axis_frames(jf)
     nxt, prv = np.roll(np.arange(6), -1), np.roll(np.arange(6), 1)
     a = 2.0 * np.eye(6)

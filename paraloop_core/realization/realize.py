@@ -64,17 +64,20 @@ def unit_length(joint_factors: np.ndarray) -> float:
 
 
 def check_params(p: float, rho: float, d: float, max_k: int) -> None:
-    bad = []
-    if not (np.isfinite(p) and p > 0):
-        bad.append(f"p must be positive, got {p!r}")
-    if not (np.isfinite(rho) and rho > 0):
-        bad.append(f"rho must be positive, got {rho!r}")
-    if not (np.isfinite(d) and d >= 2.0 * rho):
-        bad.append(f"the separation d must be at least 2 rho = {2.0 * rho!r}, got {d!r}")
-    if not (isinstance(max_k, (int, np.integer)) and max_k >= 1):
-        bad.append(f"max_k must be an integer >= 1, got {max_k!r}")
-    if bad:
-        raise RealizationError("bad realization parameters: " + "; ".join(bad), "bad-parameters")
+    """Refuse impossible search parameters: RealizationError (``bad-parameters``) whose
+    ``param`` names the first bad one (``p``, ``d``, ``rho``, ``max_k``) and its range."""
+    bad = [("p", not (np.isfinite(p) and p > 0), f"p must be positive, got {p!r}"),
+           ("d", not (np.isfinite(d) and d > 0), f"d must be positive, got {d!r}"),
+           ("rho", not (np.isfinite(rho) and rho > 0), f"rho must be positive, got {rho!r}"),
+           ("rho", not d >= 2.0 * rho,
+            f"the separation d must be at least 2 rho: rho must be in (0, d / 2 = {d / 2:.4g}] "
+            f"for d = {d:.4g}, got rho = {rho:.4g}"),
+           ("max_k", not (isinstance(max_k, (int, np.integer)) and max_k >= 1),
+            f"max_k must be an integer >= 1, got {max_k!r}")]
+    for param, failed, message in bad:
+        if failed:
+            raise RealizationError(f"bad realization parameters: {message}", "bad-parameters",
+                                   param)
 
 
 class Search:
@@ -95,7 +98,7 @@ class Search:
                  in_unit: float = 1.0):
         if fixed is not None and len(fixed) >= 6:
             raise RealizationError("at most five vertices can be fixed (the search shifts the "
-                                   f"free ones), got {len(fixed)}", "bad-parameters")
+                                   f"free ones), got {len(fixed)}", "bad-parameters", "fixed")
         jf = np.asarray(joint_factors, dtype=np.float64)
         own = unit_length(jf)
         # the search unit from the given numbers alone: factors with the same bits in any

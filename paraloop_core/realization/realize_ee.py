@@ -271,7 +271,8 @@ class EffectorSearch(Search):
         self.clearance = self.rho if self.ee_clearance is None else self.ee_clearance
         if not (np.isfinite(self.clearance) and self.clearance >= 0):
             raise RealizationError(f"ee_clearance must be >= 0, got "
-                                   f"{self.clearance * self.unit!r}", "bad-parameters")
+                                   f"{self.clearance * self.unit!r}", "bad-parameters",
+                                   "clearance")
         super().start()
         self.mot = PairMotions(self.jf, {r[2] for r in THIN_ROWS} | {r[2] for r in STEP4_ROWS})
 

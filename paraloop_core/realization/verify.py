@@ -22,7 +22,7 @@ re-checked here by branch and bound with rigorous displacement bounds:
   moving segment's Hausdorff displacement is at most its endpoints' larger one, and the
   segment distance changes by at most that much on the cell: ``d(c) - m`` is a lower bound.
 * Cells whose lower bound is not within ``tol + RELATIVE * best`` of the best distance found
-  are halved (far pairs need no more absolute precision than near ones; a flat minimum, e.g.
+  are split in four (far pairs need no more absolute precision than near ones; a flat minimum, e.g.
   two points on a common rotation axis, would otherwise need endless cells).
 
 Result per pair: ``upper`` (a distance attained at ``t``: never below the true minimum) and
@@ -44,13 +44,15 @@ from paraloop_core.realization.motion_bound import chain_sweep
 
 #: Wanted gap ``upper - lower`` relative to the pair's distance (on top of the absolute tol).
 RELATIVE = 1e-4
-#: Cells per chart at the start, the most cells one pair may visit, and halving rounds.
-_START_CELLS = 64
+#: Cells per chart at the start, the most cells one pair may visit, and splitting rounds.
+_START_CELLS = 8
 _MAX_CELLS = 200_000
 _MAX_ROUNDS = 48
-#: Pairs bounded together (one batch of cells): large enough to amortize the array calls,
-#: small enough that a refuted pair (the search stops there) wastes little work after it.
-_BATCH = 8
+#: Parts an open cell is split into per round (fewer rounds: each costs array calls).
+_SPLIT = 4
+#: Pairs bounded together (one batch of cells): all 42 of a polyline (array calls, not
+#: cells, dominate; a refutation is rare and still stops the search at its round).
+_BATCH = 42
 
 
 @dataclass(frozen=True)
@@ -197,15 +199,14 @@ def _branch_and_bound(chains: _Chains, chain_of: np.ndarray, fixed: np.ndarray,
         keep = keep[~refuted[row[keep]]]
         if keep.size == 0:
             break
-        # halve: per pair and chart, the left halves then the right halves (pair order kept)
-        ch, xk, rk, rw = chart[keep], x[keep], r[keep] / 2, row[keep]
-        key = np.concatenate([rw * 2 + ch, rw * 2 + ch])
-        half = np.concatenate([np.zeros(keep.size, int), np.ones(keep.size, int)])
-        order = np.lexsort((np.arange(2 * keep.size), half, key))
-        chart = np.concatenate([ch, ch])[order]
-        x = np.concatenate([xk - rk, xk + rk])[order]
-        r = np.concatenate([rk, rk])[order]
-        row = np.concatenate([rw, rw])[order]
+        # split in _SPLIT: per pair and chart, the leftmost parts first (pair order kept)
+        ch, xk, rk, rw = chart[keep], x[keep], r[keep] / _SPLIT, row[keep]
+        part = np.repeat(np.arange(_SPLIT), keep.size)
+        order = np.lexsort((np.arange(_SPLIT * keep.size), part, np.tile(rw * 2 + ch, _SPLIT)))
+        chart = np.tile(ch, _SPLIT)[order]
+        x = (np.tile(xk, _SPLIT) + (2 * part + 1 - _SPLIT) * np.tile(rk, _SPLIT))[order]
+        r = np.tile(rk, _SPLIT)[order]
+        row = np.tile(rw, _SPLIT)[order]
     else:  # rounds exhausted: pairs with unbounded cells left are unsure
         lower[np.unique(row)] = -np.inf
     finished = lower > -np.inf
@@ -219,22 +220,26 @@ def _cells(lin: np.ndarray, axes: np.ndarray, fixed: np.ndarray, moving: np.ndar
     bounds ``(C,)`` over the cells of radii ``r``, each cell with its chain's linear factors
     ``lin`` ``(C, k, 2, 8)``, axes ``(C, k, 6)`` and segments ``fixed``, ``moving`` ``(C, 2,
     3)`` (module docstring; ``inf`` where a factor degenerates, which a generic motion never
-    does)."""
-    u = np.stack([x, x - r, x + r])  # (3, C)
-    q = lin[None, :, :, 0] + lin[None, :, :, 1] * u[:, :, None, None]  # (3, C, k, 8)
-    q = q.transpose(2, 0, 1, 3)  # (k, 3, C, 8)
-    pn = np.linalg.norm(q[..., :4], axis=-1, keepdims=True)  # (k, 3, C, 1)
-    ok = np.all(pn[..., 0] > 1e-150, axis=(0, 1))
-    q = q / np.where(pn > 1e-150, pn, 1.0)
-    disp, y = chain_sweep(q[:, 0], [q[:, 1], q[:, 2]], axes.transpose(1, 0, 2), moving)
+    does). The factors are built per component (``(8, k, C)``, long inner loops) and handed
+    to :func:`chain_sweep` as views."""
+    l0 = np.ascontiguousarray(lin[:, :, 0, :].T)  # (8, k, C)
+    l1 = np.ascontiguousarray(lin[:, :, 1, :].T)
+    unit, ok = [], np.ones(len(x), bool)
+    for u in (x, x - r, x + r):  # the factors at the centre and both ends, unit primal parts
+        q = l0 + l1 * u
+        pn = np.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])  # (k, C)
+        ok &= np.all(pn > 1e-150, axis=0)
+        q /= np.where(pn > 1e-150, pn, 1.0)
+        unit.append(np.moveaxis(q, 0, -1))  # (k, C, 8) view
+    disp, y = chain_sweep(unit[0], unit[1:], axes.transpose(1, 0, 2), moving)
+    disp = disp.max(axis=1)
     moment = axes[..., 3:]
     # rounding of the composed points and of the chords: far below 1e-12 of the frame's size
     size = (np.abs(fixed).max(axis=(1, 2)) + np.abs(moving).max(axis=(1, 2))
             + 2.0 * np.abs(moment).sum(axis=(1, 2)))
-    slack = 1e-12 * size * (1.0 + disp.max(axis=1) / np.maximum(size, 1e-300))
+    slack = 1e-12 * size * (1.0 + disp / np.maximum(size, 1e-300))
     d = segment_distance(fixed[:, 0], fixed[:, 1], y[:, 0], y[:, 1])
-    return (np.where(ok, d + slack, np.inf),
-            np.where(ok, disp.max(axis=1) + 2.0 * slack, np.inf))
+    return np.where(ok, d + slack, np.inf), np.where(ok, disp + 2.0 * slack, np.inf)
 
 
 #: The six pairs of consecutive bars ``(S_iE_i, S_{i+1}E_{i+1})`` ``(6, 4)`` (edge, edge, link,
