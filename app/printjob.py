@@ -24,29 +24,28 @@ import numpy as np
 from paraloop_core import pipeline, printed
 from paraloop_core.design import DriveSettings
 from paraloop_core.errors import FabricationError, RealizationError
-from paraloop_core.fabrication import export, layout, printable
-
-#: Parameters of the cycle at which the preview's parts are verified (``Options.samples``):
-#: fewer than *Export all*'s 720, to keep the preview a few seconds; the verification stays
-#: sound between samples (a proven motion bound), only coarser.
-PREVIEW_SAMPLES = 90
+from paraloop_core.fabrication import check, export, printable
 
 Mesh = tuple[np.ndarray, np.ndarray]  # vertices (V, 3) float32, faces (F, 3) uint32
+LinkMeshes = tuple[Mesh | None, ...]  # per link 0..5, None: nothing on that link
 
 
 @dataclasses.dataclass(frozen=True)
 class Parts:
     """The printed loop as the studio draws and summarizes it: its ``joint_factors``
     ``(6, 8)`` (design units: the printed loop, which may be another of the nine loops or the
-    design's realized again with roomier joints), per link the ``meshes`` (home frame at
-    ``t = inf``, design units: its printed part with the pins, caps and metal hardware moving
-    with it, the base plate and rod with the grounded link; None: nothing), the printed
-    ``loop`` and the design's ``design_loop``, the ``report`` (``Printed.report`` with
-    ``print_layout``, ``parts`` and ``bill_of_materials`` as *Export all* writes them), the
+    design's realized again with roomier joints), per link the printed parts ``meshes`` and
+    the metal ``hardware`` moving with it (screws, nuts, washers, the rod; home frame at
+    ``t = inf``, design units: the export's mm divided by ``scale``; the base plate goes with
+    the grounded link), ``scale`` (mm per design unit), the printed ``loop`` and the design's
+    ``design_loop``, the ``report`` (``Printed.report`` with the entries *Export all* adds:
+    ``print_layout``, ``parts``, ``bill_of_materials``, ``scale_mm_per_unit``), the
     verification's ``samples`` and the build's wall time ``seconds``."""
 
     joint_factors: np.ndarray
-    meshes: tuple[Mesh | None, ...]
+    meshes: LinkMeshes
+    hardware: LinkMeshes
+    scale: float
     loop: int
     design_loop: int
     report: dict
@@ -59,55 +58,48 @@ class Parts:
         return self.loop == self.design_loop
 
 
-def link_meshes(made: printable.Printed) -> tuple[Mesh | None, ...]:
-    """Per link the printed parts and hardware that move with it, in design units
-    (:class:`Parts`); a piece on no link (the base, ``link -1``) goes with the grounded
-    link."""
+def merged(solids: list, scale: float) -> Mesh | None:
+    """Manifold ``solids`` (mm) as one mesh in design units (mm / ``scale``); None if none."""
+    if not solids:
+        return None
+    meshes = [check.part_trimesh(s) for s in solids]
+    offsets = np.cumsum([0] + [len(m.vertices) for m in meshes[:-1]])
+    verts = np.concatenate([m.vertices for m in meshes]) / scale
+    faces = np.concatenate([m.faces + k for m, k in zip(meshes, offsets, strict=True)])
+    return verts.astype(np.float32), faces.astype(np.uint32)
+
+
+def link_meshes(made: printable.Printed) -> tuple[LinkMeshes, LinkMeshes]:
+    """``(printed parts, hardware)`` per link in design units (:class:`Parts`)."""
     asm = made.assembly
     ground = made.base.link if made.base is not None else 0
-    pieces: list[list] = [[] for _ in range(6)]
-    for link, solid in [(p.link, p.manifold) for p in asm.parts] + \
-            [(h.link, h.solid) for h in asm.hardware]:
-        pieces[link if 0 <= link < 6 else ground].append(solid.to_mesh())
-    out: list[Mesh | None] = []
-    for meshes in pieces:
-        if not meshes:
-            out.append(None)
-            continue
-        verts, faces, n = [], [], 0
-        for m in meshes:
-            v = np.asarray(m.vert_properties, float)[:, :3]
-            verts.append(v)
-            faces.append(np.asarray(m.tri_verts, np.int64) + n)
-            n += len(v)
-        out.append(((np.concatenate(verts) / asm.scale).astype(np.float32),
-                    np.concatenate(faces).astype(np.uint32)))
-    return tuple(out)
 
+    def on(link: int) -> int:  # a piece on no link (the base) goes with the grounded link
+        return link if 0 <= link < 6 else ground
 
-def full_report(made: printable.Printed, opts: printable.Options) -> dict:
-    """``made.report`` with the entries *Export all* adds (``print_layout``: plates and
-    support per part; ``parts``: masses; ``bill_of_materials``), computed the same way."""
-    asm = made.assembly
-    meshes = export.part_meshes(asm)
-    placements = layout.bed_layout(meshes, export.downs(asm), asm.printer.bed_mm)
-    return {**made.report,
-            "print_layout": layout.layout_entry(placements, asm.printer.bed_mm),
-            "parts": export.parts_entry(asm, meshes, opts.material),
-            "bill_of_materials": export.bill_of_materials(asm, opts.material)}
+    parts = tuple(merged([p.manifold for p in asm.parts if on(p.link) == i], asm.scale)
+                  for i in range(6))
+    hardware = tuple(merged([h.solid for h in asm.hardware if on(h.link) == i], asm.scale)
+                     for i in range(6))
+    return parts, hardware
 
 
 def build(sol: pipeline.Solution, opts: printable.Options,
           progress: printed.Progress | None = None) -> tuple[Parts, printable.Printed]:
-    """The :class:`Parts` of ``sol`` (with a realization) for ``opts`` and the
-    :class:`printable.Printed` they come from; raises what :func:`printed.make` raises."""
+    """The :class:`Parts` of ``sol`` (with a realization) for ``opts``, built as *Export all*
+    builds them (:func:`printed.make`), and the :class:`printable.Printed` they come from;
+    raises what :func:`printed.make` raises."""
     t0 = time.perf_counter()
     made, _ = printed.make(sol, opts, progress)
-    report = full_report(made, opts)
+    asm = made.assembly
+    entries, _, _ = export.report_entries(asm, opts.material)
+    report = {**made.report, **entries}
     report["choice"] = {**report["choice"], "note": printed.note(sol, made),
                         "design_loop": sol.design.loop}
-    parts = Parts(np.array(made.assembly.joint_factors, float), link_meshes(made), made.loop,
-                  sol.design.loop, report, opts.samples, time.perf_counter() - t0)
+    meshes, hardware = link_meshes(made)
+    parts = Parts(np.array(asm.joint_factors, float), meshes, hardware, float(asm.scale),
+                  made.loop, sol.design.loop, report, opts.samples,
+                  time.perf_counter() - t0)
     return parts, made
 
 

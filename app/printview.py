@@ -33,7 +33,7 @@ from typing import TYPE_CHECKING, Any
 
 from app.exports import options_of
 from app.panels.summary import SummaryCard, first_sentence, physics_text
-from app.printjob import PREVIEW_SAMPLES, Parts, serve
+from app.printjob import Parts, serve
 from app.worker import FRAME, FULL, PREVIEW, NewestWorker
 from paraloop_core.design import Design
 
@@ -143,7 +143,8 @@ class PrintView:
             if parts is None:
                 scene.set_parts(scene.joint_factors, None)
             else:
-                scene.set_parts(parts.joint_factors, list(parts.meshes), shown_for=key[0])
+                scene.set_parts(parts.joint_factors, list(parts.meshes), list(parts.hardware),
+                                shown_for=key[0])
             scene.draw_frame(st.u, st.thickness)
             scene.apply_layers(st.hidden)
         self._drawn = key
@@ -199,11 +200,10 @@ class PrintView:
         """A child process building the parts of ``sol`` for ``key``."""
         ctx = _context()
         mine, theirs = ctx.Pipe()
-        opts = dataclasses.replace(key[1], samples=PREVIEW_SAMPLES)
         sol = dataclasses.replace(sol, design=dataclasses.replace(sol.design, drive=key[2]))
-        process = ctx.Process(target=serve, args=(theirs, sol, opts), daemon=True,
+        process = ctx.Process(target=serve, args=(theirs, sol, key[1]), daemon=True,
                               name="paraloop-printed-parts")
-        self.card.progress(0.0, "starting")
+        self.card.progress(0.0)
         process.start()
         theirs.close()
         self._child = _Child(key, process, mine)
@@ -232,7 +232,7 @@ class PrintView:
                                      "design to try again.*")
                 return False
             if kind == "progress":
-                self.card.progress(*args)
+                self.card.progress(args[0])  # the core's step names are jargon
                 continue
             self._answer(child, kind, args)
             return True

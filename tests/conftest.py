@@ -54,3 +54,10 @@ def _user_data_in_tmp(tmp_path_factory, monkeypatch):
     """Tests never write into the user's data or state folders (studio autosaves, meshes)."""
     monkeypatch.setenv("XDG_DATA_HOME", str(tmp_path_factory.getbasetemp() / "xdg"))
     monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path_factory.getbasetemp() / "xdg-state"))
+
+
+@pytest.fixture(autouse=True)
+def _no_printed_parts(monkeypatch):
+    """Studios in tests draw solid links only: the printed parts' builder (``app.printview``,
+    a child process of seconds per edit) is switched on by the tests that look at them."""
+    monkeypatch.setenv("PARALOOP_STUDIO_PARTS", "0")

@@ -19,10 +19,8 @@ import viser
 from app.panels.design import handler
 from app.printjob import Parts
 from app.wording import gui_text
-from paraloop_core.fabrication import printable, profiles
+from paraloop_core.fabrication import profiles
 
-#: The verification's samples of *Export all* (the preview checks fewer).
-EXPORT_SAMPLES = printable.Options().samples
 #: The card before any parts are built.
 WAITING = "*The printed parts are built a moment after the design settles.*"
 NOT_RUN = "*Physics check: not run for these parts.*"
@@ -115,8 +113,7 @@ def card_text(parts: Parts) -> str:
     lines.append(
         f"- **Collision check:** {'passed' if v['ok'] else '**failed**'}, least gap between "
         f"links without a common joint {v['min_non_adjacent_gap_mm']:.1f} mm at "
-        f"{parts.samples} points of the cycle and between them (this preview; Export all "
-        f"checks {EXPORT_SAMPLES} points)")
+        f"{parts.samples} points of the cycle and, by a proven motion bound, between them")
     lines += [f"- *Note:* {gui_text(w)}" for w in r["warnings"]]
     return "\n".join(lines)
 
@@ -147,7 +144,7 @@ class SummaryCard:
     folder; ``on_physics()`` is called when *Run physics check* is pressed (GUI thread)."""
 
     def __init__(self, gui: viser.GuiApi, order: float, on_physics: Callable[[], Any]) -> None:
-        self.building = gui.add_markdown("*Building the printed parts...*", order=order,
+        self.building = gui.add_markdown("*Building printed parts ...*", order=order,
                                          visible=False)
         with gui.add_folder("Printed object", order=order + 0.001):
             self.text = gui.add_markdown(WAITING)
@@ -160,13 +157,13 @@ class SummaryCard:
             self.physics = gui.add_markdown(NOT_RUN)
         self.physics_button.on_click(handler(lambda _: on_physics()))
 
-    def progress(self, fraction: float | None, message: str = "") -> None:
-        """The building line: ``fraction`` done with ``message``, or hidden (None)."""
+    def progress(self, fraction: float | None) -> None:
+        """The building line: ``fraction`` done, or hidden (None)."""
         if fraction is None:
             self.building.visible = False
             return
-        self.building.content = (f"*Building the printed parts ({100 * fraction:.0f} %): "
-                                 f"{message}... the solid bars stand in for them.*")
+        self.building.content = (f"*Building printed parts ... ({100 * fraction:.0f} %): "
+                                 "solid bars stand in for them until they are ready.*")
         self.building.visible = True
 
     def show(self, parts: Parts | None, text: str | None = None) -> None:
