@@ -103,6 +103,7 @@ class PrintView:
         self._want: tuple[Key | None, Any] = (None, None)  # (key, solution) on screen
         self._ready: tuple[Key, Parts] | None = None  # built, for the worker to draw
         self._drawn: Key | None = None  # the parts in the scene (worker thread)
+        self.parts: Parts | None = None  # and what they are
         self._active = 0.0  # monotonic time of the last preview or full update
         self._physics = False  # a physics check asked for
         self._closed = False
@@ -147,7 +148,7 @@ class PrintView:
                                 shown_for=key[0])
             scene.draw_frame(st.u, st.thickness)
             scene.apply_layers(st.hidden)
-        self._drawn = key
+        self._drawn, self.parts = key, parts
         if parts is not None:
             self.card.show(parts)
 
