@@ -56,8 +56,11 @@ def _user_data_in_tmp(tmp_path_factory, monkeypatch):
     monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path_factory.getbasetemp() / "xdg-state"))
 
 
-@pytest.fixture(autouse=True)
-def _no_printed_parts(monkeypatch):
+@pytest.fixture(autouse=True, scope="session")
+def _no_printed_parts():
     """Studios in tests draw solid links only: the printed parts' builder (``app.printview``,
-    a child process of seconds per edit) is switched on by the tests that look at them."""
-    monkeypatch.setenv("PARALOOP_STUDIO_PARTS", "0")
+    a child process of seconds per edit) is switched on by the tests that look at them.
+    Session-wide, so that module-scoped studios are built without it too."""
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("PARALOOP_STUDIO_PARTS", "0")
+        yield
