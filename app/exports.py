@@ -125,17 +125,20 @@ def print_size(real: Any, fab: FabSettings) -> float:
 
 
 def print_estimate(real: Any, fab: FabSettings) -> tuple[float, float | None]:
-    """``(size, bar width)`` (mm) the on-screen realization would print at with M3 screws:
-    :func:`print_size` and the thinnest bar the sizing gives it there (None when its joints
-    do not fit: *Export all* then realizes the loop again with roomier joints, as it may
-    anyway, so the exported parts can differ)."""
+    """``(size, bar width)`` (mm) the on-screen realization would print at with the export's
+    automatic joints (M3 screws, M2 where M3 does not fit): :func:`print_size` and the
+    thinnest bar the sizing gives it there (None when no joints fit: *Export all* then
+    realizes the loop again with roomier joints, as it may anyway, so the exported parts can
+    differ)."""
     size = print_size(real, fab)
-    try:
-        plan = sizing.plan(real, printer_of(fab), profiles.MATERIALS["pla"], "m3",
-                           profiles.DEFAULT_ROD, size_mm=size)
-    except FabricationError:
-        return size, None
-    return size, float(plan.radii.min() * sizing.FLATS)
+    for kind in profiles.AUTO_JOINTS:
+        try:
+            plan = sizing.plan(real, printer_of(fab), profiles.MATERIALS["pla"], kind,
+                               profiles.DEFAULT_ROD, size_mm=size)
+        except FabricationError:
+            continue
+        return size, float(plan.radii.min() * sizing.FLATS)
+    return size, None
 
 
 def carve_spaces(sol: pipeline.Solution, fab: FabSettings,

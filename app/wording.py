@@ -7,13 +7,8 @@ import re
 
 #: (the core's phrase, the studio's) - the phrases of ``paraloop_core.fabrication``'s notes.
 PHRASES = (
-    ("choose --ground-link, a larger bed or a smaller --size-mm",
-     "choose another link in Column on link, switch off Grounding column, or set a smaller "
-     "Size (mm) in Fabrication"),
-    ("use a larger printer (--printer / --bed), thinner walls or a thinner pin",
-     "try another Loop variant, thinner bars (Realization) or switch off Grounding column"),
-    ("use --size-mm or a larger bed", "set a smaller Size (mm) in Fabrication"),
-    ("export with `--print-in-place`", "export with Print in place"),
+    ("print the parts separately with --joints m3 (screws) or printed-pin",
+     "switch off Print in place: the parts then print separately, joined by screws"),
 )
 #: Options left over, by name: the studio's control for it.
 OPTIONS = {"size-mm": "Size (mm)", "ground-link": "Column on link",

@@ -155,3 +155,18 @@ def test_plate_is_one_closed_piece_with_the_rod_socket():
     rod = next(h for h in pr.assembly.hardware if h.joint == -1)
     assert (plate.manifold ^ rod.solid).volume() < 1e-6  # the rod in its socket
     assert np.linalg.norm(rod.capsule[1] - b.bottom) < 1e-9  # down to the plate's underside
+
+
+def test_a_loop_without_a_base_says_how_it_is_held():
+    """Exported without a base (or with no rod that clears the moving links): no ``base``
+    entry, and the report's ``mount`` says how to hold it; with a standing base, ``mount`` is
+    None."""
+    from paraloop_core.fabrication import printable
+
+    cand = printable.Candidate("test loop", 4, lambda: (F.real(), None))
+    bare = printable.make([cand], printable.Options(size_mm=F.SIZE_MM, samples=F.SAMPLES,
+                                                    ground=False))
+    assert "base" not in bare.report and bare.base is None
+    assert bare.report["mount"].startswith("exported without a base") and \
+        "hold it by a link" in bare.report["mount"]
+    assert F.printed().report["base"]["stands"] and F.printed().report["mount"] is None

@@ -139,6 +139,24 @@ def test_existing_files_are_refused_before_any_work(exported, capsys, monkeypatc
     assert len(err) == 1 and "already exists" in err[0] and "--force" in err[0]
 
 
+def test_force_leaves_one_export(exported, tmp_path, capsys):
+    """``--force`` over an earlier export: what this one does not write (a part or picture
+    more, the Rhino file) is removed; files that are not an export's are kept."""
+    import shutil
+
+    out = tmp_path / "again"
+    shutil.copytree(exported[0], out)
+    for stale in ("link_9.stl", "guide_joint_9.png", "pin_cap_7.stl"):
+        (out / stale).write_bytes(b"old")
+    (out / "notes.txt").write_text("mine")
+    assert main(["export", str(TV8), "--out", str(out), "--quiet", "--force"]) == 0
+    names = {p.name for p in out.iterdir()}
+    assert not names & {"link_9.stl", "guide_joint_9.png", "pin_cap_7.stl", "paraloop.3dm"}
+    assert "notes.txt" in names and "link_0.stl" in names
+    report = json.loads((out / "report.json").read_text())
+    assert {p["name"] + ".stl" for p in report["parts"]} <= names
+
+
 def _refused(argv: list[str], capsys, out: Path, *words: str) -> None:
     assert main(argv) == 2
     err = capsys.readouterr().err.strip().splitlines()

@@ -110,11 +110,27 @@ def test_plain_export_passes_the_independent_checks(name, tmp_path):
     run = subprocess.run([sys.executable, "-m", "app.cli.main", "export",
                           f"assets/designs/{name}.json", "--out", str(out), "--quiet"],
                          cwd=ROOT, capture_output=True, text=True, timeout=900)
-    if not (out / "result.json").exists():
-        pytest.skip(f"the export does not write the printed loop's folder yet (exit "
-                    f"{run.returncode}: {run.stderr.strip()[-200:]})")
+    assert run.returncode == 0 and (out / "result.json").exists(), run.stderr[-400:]
     found = pc.check_export(out)
-    assert not found["failures"], "\n".join(found["failures"] + [json.dumps(pc.summary(found))])
+    # what the independent checker finds is what the export says: only links the report
+    # names as not lying flat (print_flat_slack_mm < 0, a warning) may need supports
+    report = json.loads((out / "report.json").read_text())
+    lifted = [i for i, s in enumerate(report["print_flat_slack_mm"]) if s < 0]
+    unannounced = [f for f in found["failures"]
+                   if not (f.startswith("print: link_") and int(f.split()[1][5:]) in lifted)]
+    assert not unannounced, "\n".join(unannounced + [json.dumps(pc.summary(found))])
+    assert not lifted or any("cannot lie on the bar's face" in w and
+                             all(str(i) in w for i in lifted) for w in report["warnings"])
+
+
+@pytest.mark.xfail(strict=True, reason="issue 26: tv8's grounded link 5 cannot lie flat "
+                   "around the rod's bore (its bar would need 7 mm more than the room allows): "
+                   "printed on its bosses with supports under 30 % of its downward area")
+def test_tv8_prints_without_supports(tmp_path):
+    out = tmp_path / "tv8"
+    subprocess.run([sys.executable, "-m", "app.cli.main", "export", "assets/designs/tv8.json",
+                    "--out", str(out), "--quiet"], cwd=ROOT, capture_output=True, timeout=900)
+    assert not pc.check_export(out)["failures"]
 
 
 # --- a good export damaged: each damage is reported --------------------------------------------

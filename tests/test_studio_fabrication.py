@@ -201,4 +201,6 @@ def test_print_in_place_is_refused_with_the_reason(tv8):
     wait_long(tv8)
     title, body, error = tv8.notifications[-1]
     assert error and title == "Export failed" and "print-in-place needs" in body
-    assert "--joints m3" in body and len(tv8.downloads) == n
+    # in the studio's words: its own control, no command-line option
+    assert "switch off Print in place" in body and "--" not in body
+    assert len(tv8.downloads) == n

@@ -8,7 +8,8 @@ the parts (``link_<i>.stl`` and the other printed pieces, assembled home pose), 
 assembly guide (``assembly.md``, ``assembly.html``, ``guide_*.png``), the printed loop's
 ``result.json``, with ``--3dm`` a Rhino ``paraloop.3dm``, and ``report.json`` into DIR (all or
 nothing). DIR is checked before the solve: it must be (or
-become) a writable directory holding none of these files unless ``--force``. Exit status 0 when
+become) a writable directory holding none of these files unless ``--force`` (which also removes
+those an earlier export wrote and this one does not). Exit status 0 when
 verification passes, 2 on refused input (nothing written), 3 when no realization was found or
 verification fails (files written, the report says why), 1 on an internal error.
 """
@@ -43,6 +44,15 @@ def check_out(out: Path, force: bool) -> None:
             raise outputs.OutputError(f"{old}: already exists (use --force to overwrite)")
 
 
+def _remove_stale(out: Path, written: set[str]) -> None:
+    """After ``--force``: the files of an earlier export this one did not write (a part, plate
+    or guide picture fewer, no Rhino file) are removed, so that DIR holds one export."""
+    names = [out / n for n in FIXED_NAMES] + [p for pat in NUMBERED for p in out.glob(pat)]
+    for old in names:
+        if old.name not in written and old.is_file():
+            old.unlink()
+
+
 def cmd_export(args: argparse.Namespace) -> int:
     path = Path(args.design)
     out = outputs.output_path(args.out, "--out")
@@ -62,6 +72,8 @@ def cmd_export(args: argparse.Namespace) -> int:
     files, report, _ = result
     try:
         outputs.write_files(out, files)
+        if args.force:
+            _remove_stale(out, {name for name, _ in files})
     except OSError as exc:  # checked before the work; a disk filled up since
         print(f"error: {out}: cannot write ({outputs.one_line(exc)})", file=sys.stderr)
         return EXIT_REFUSED

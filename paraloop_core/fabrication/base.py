@@ -268,7 +268,7 @@ def ground(asm: Assembly, density_g_cm3: float, bed_mm: tuple[float, float, floa
     need = asm.plan.gaps * GAP_MARGIN if need is None else need
     u = np.arange(SAMPLES) / SAMPLES
     masses, centers = link_masses(asm, density_g_cm3)
-    room = min(bed_mm[0], bed_mm[1]) / 2 - 5.0
+    room = plate_room(bed_mm)
     found = []
     r_rod = rod.d_mm / 2
     socket_r, socket_h = r_rod + 2 * asm.printer.wall_mm, SOCKET_D * rod.d_mm
@@ -339,6 +339,26 @@ def final(asm: Assembly, b: Base, density_g_cm3: float, samples: int = 720) -> B
         f"{MOUNT_HOLE_MM:g} mm holes (wood screws, 4 mm)")
     return replace(b, com=com, margin_mm=float(inside), stands=stands, mount=mount,
                    masses_g=masses)
+
+
+def plate_room(bed_mm: tuple[float, float, float]) -> float:
+    """Largest plate radius (mm) a bed holds, 5 mm from its edges."""
+    return min(bed_mm[0], bed_mm[1]) / 2 - 5.0
+
+
+def refit(b: Base, rod: Rod, wall_mm: float, bed_mm: tuple[float, float, float]
+          ) -> Base | None:
+    """``b`` (measured by :func:`final`) with the plate re-centred and grown for the built
+    parts' centre of mass path, where the masses predicted when it was chosen put it short of
+    the margin: the smallest disc :func:`_plate` gives; None when the bed cannot hold it."""
+    com2 = b.com @ b.frame[:, :2]
+    far = float(np.linalg.norm(com2 - b.center, axis=1).max())
+    step = b.radius - far - b.margin_mm  # the parts' motion between samples, as measured
+    foot = b.frame[:, :2].T @ b.bottom
+    center, radius = _plate(com2, foot, rod.d_mm / 2 + 2 * wall_mm, step)
+    if radius > plate_room(bed_mm) or radius <= b.radius:
+        return None
+    return replace(b, center=center, radius=radius)
 
 
 def plate_part(b: Base, wall_mm: float, segments: int = 96) -> Part:

@@ -60,7 +60,7 @@ class Options:
 
     printer: Printer = profiles.PRINTERS["generic"]
     material: Material = profiles.MATERIALS["pla"]
-    joints: str = "m3"
+    joints: str = "auto"  # the CLI's and the studio's default: M3, M2 where M3 does not fit
     rod: Rod = profiles.DEFAULT_ROD
     size_mm: float | None = None
     ground: bool = True
@@ -197,7 +197,15 @@ def _fit_and_build(real: Realization, ee: object | None, plan: sizing.Plan, opts
                    ) -> tuple[Assembly, sizing.Plan]:
     """The assembly of ``plan``; with an automatic size it shrinks while a built link does not
     fit the bed in its print orientation."""
-    end_bars = None if ee is None else ee.end_link()[[0, 1, 2, 3]].reshape(2, 2, 3)
+    end_bars = None
+    if ee is not None:
+        # the bars S_3 L and R E_3 end on P's corners; ending exactly there left the union
+        # pinched at that point (two vertices at one position: an open mesh for a slicer):
+        # a hair (END_INSET of the way to P's centroid) inside P instead
+        end_bars = np.array(ee.end_link()[[0, 1, 2, 3]], float).reshape(2, 2, 3)
+        mid = np.asarray(ee.effector.vertices, float).mean(axis=0)
+        end_bars[0, 1] += END_INSET * (mid - end_bars[0, 1])
+        end_bars[1, 0] += END_INSET * (mid - end_bars[1, 0])
     extras = None
     if ee is not None:
         from paraloop_core.fabrication import endlink
@@ -267,13 +275,8 @@ def _ground(asm: Assembly, opts: Options) -> tuple[Assembly, base.Base | None, l
             found.setdefault((cap, flat_ok), grounded)
     for cap, flat_ok in ((True, False), (False, True), (False, False)):
         if (cap, flat_ok) in found:
-            return (*found[cap, flat_ok], warnings + (
-                [] if flat_ok else ["the two links on the grounding rod cannot lie on their "
-                                    "bars' faces without breaking into the rod's bore: they "
-                                    "stand on their bosses, the bars print with supports"]))
-    return asm, None, warnings + ["no grounding rod clears the moving links over the whole "
-                                  "cycle: exported without a base (hold it by a link, or hang "
-                                  "it)"]
+            return (*found[cap, flat_ok], warnings)  # make() names the links not flat
+    return asm, None, warnings + [NO_BASE]
 
 
 def _rods(asm: Assembly, b: base.Base, opts: Options) -> list[Rod]:
@@ -306,6 +309,18 @@ def _rod_joint(asm: Assembly, joint: int, opts: Options, rod: Rod, side: int, ca
                          rod_side=side, cap=cap)
 
 
+#: How far the end-effector link's bars reach past P's corners L and R towards its centroid
+#: (a fraction of the way): inside P, not on its corner.
+END_INSET = 1e-4
+#: How to hold a loop without a base, and why it has none.
+HOLD = ("hold it by a link (clamp or screw the link's boss to a stand) or hang it by a link "
+        "on a string")
+NO_BASE = ("no grounding rod clears the moving links over the whole cycle: exported without a "
+           "base; " + HOLD)
+#: Plates built for one grounding: the first, then grown for the measured centre of mass.
+PLATE_ROUNDS = 3
+
+
 def _on_rod(asm: Assembly, b: base.Base, opts: Options, cap: bool = True
             ) -> tuple[Assembly, base.Base]:
     """``asm`` with joint ``b.joint`` laid out for the rod, the plate and the rod added."""
@@ -315,10 +330,19 @@ def _on_rod(asm: Assembly, b: base.Base, opts: Options, cap: bool = True
     rod_piece = next(p for p in new.pieces if p.role == "rod")
     cap_end = new.at(rod_piece.s1 if side == 0 else rod_piece.s0)  # the rod's upper end
     b = replace(b, top=cap_end)
-    asm = replace(asm, hardware=tuple(h for h in asm.hardware if h.role != "rod"))
-    asm = assembly.with_parts(asm, (base.plate_part(b, opts.printer.wall_mm),),
-                              (base.rod_hardware(b, cap_end),), b)
-    b = base.final(asm, b, opts.material.density_g_cm3)
+    bare = replace(asm, hardware=tuple(h for h in asm.hardware if h.role != "rod"))
+    for n in range(PLATE_ROUNDS):
+        asm = assembly.with_parts(bare, (base.plate_part(b, opts.printer.wall_mm),),
+                                  (base.rod_hardware(b, cap_end),), b)
+        b = base.final(asm, b, opts.material.density_g_cm3)
+        if b.stands or n == PLATE_ROUNDS - 1:
+            break
+        # the plate was chosen with predicted masses: where the built parts' centre of mass
+        # comes nearer its rim than the margin, a plate for the measured path (bed allowing)
+        grown = base.refit(b, b.rod, opts.printer.wall_mm, opts.printer.bed_mm)
+        if grown is None:
+            break
+        b = grown
     return replace(asm, base=b), b
 
 
@@ -344,6 +368,12 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
             progress(0.4, "grounding: rod and base plate")
         asm, b, warnings = _ground(asm, opts)
     ver = check.verify(asm, opts.samples, progress=_stage(progress, 0.45, 0.95))
+    lifted = [i for i in range(6) if asm.slack[i] < 0]
+    if lifted:
+        warnings.append(f"link{'s' if len(lifted) > 1 else ''} "
+                        f"{', '.join(map(str, lifted))} cannot lie on the bar's face without "
+                        "breaking into a bore: printed standing on the bosses' cut faces, the "
+                        "bar over supports")
     report = {
         "choice": {"realization": cand.label, "loop": cand.loop, "tried": tried,
                    "radius": real.radius, "separation": real.separation},
@@ -353,6 +383,14 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
         "print_flat_slack_mm": asm.slack.tolist()}
     if b is not None:
         report["base"] = base.to_dict(b, opts.printer.bed_mm)
+    # how the loop is held where no base stands on its own (None: it stands)
+    report["mount"] = (None if b is not None and b.stands else b.mount if b is not None else
+                       NO_BASE if opts.ground else "exported without a base: " + HOLD)
+    if ee is not None:  # how P became part of link 3 (endlink: closed, hull or thickened)
+        from paraloop_core.fabrication import endlink
+
+        report["end_effector"] = {"link": 3,
+                                  "method": endlink.end_link(ee, real.points).method}
     masses, centers = base.link_masses(asm, opts.material.density_g_cm3)
     resting = b.link if b is not None else 0
     up = b.up if b is not None else np.array([0.0, 0.0, 1.0])

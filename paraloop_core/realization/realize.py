@@ -34,6 +34,10 @@ from paraloop_core.realization.polyline import polyline_length, shortest_polylin
 #: Wanted gap between reported and proven pair minima, as a fraction of the polyline length l
 #: (plus :data:`verify.RELATIVE` of the pair's own distance).
 VERIFY_TOL = 1e-6
+#: Precision (per polyline length) of the accepted polyline's lower bounds, the room the
+#: design spaces and the printed parts' sizing use: 0.2 % of the size is below what a print
+#: resolves, and costs a fraction of full precision (a few ms per realization).
+ROOM_TOL = 2e-3
 #: Work units of one step-4 offset sequence examined and of one certificate cell, in thin
 #: polyline checks (the unit: about 0.3 ms on one core); measured, so that a budget is
 #: roughly a time, the same on every machine and at every scale.
@@ -175,7 +179,17 @@ class Search:
         self.cells += int(bounds.cells.sum())
         if bounds.lower.min() < need:
             return None
-        return replace(bounds, lower=bounds.lower - gap), gap
+        # proven clear: the search stopped refining each pair at twice what it needs, but the
+        # design spaces and the printed parts' sizing use these bounds as the room between
+        # the links, so the accepted polyline's pairs are refined to full precision (both
+        # bounds are sound lower bounds: the larger one holds)
+        tight = verify.polyline_bounds(self.jf, points, pairs, ROOM_TOL * self.length, t)
+        self.cells += int(tight.cells.sum())
+        lower = np.maximum(bounds.lower, tight.lower)
+        nearer = tight.upper < bounds.upper  # both attained: the smaller is nearer the minimum
+        return replace(bounds, lower=lower - gap, upper=np.where(nearer, tight.upper,
+                                                                 bounds.upper),
+                       t=np.where(nearer, tight.t, bounds.t)), gap
 
     def result(self, step: OffsetSearch, seq: int, tau: np.ndarray, v: np.ndarray,
                stats: dict, proof: object) -> Realization:

@@ -114,7 +114,7 @@ def check_stand(ex) -> tuple[dict, list[str]]:
     """Figures and failures of the standing check."""
     base = ex.report.get("base") or {}
     if not base.get("stands"):
-        mount = base.get("mount")
+        mount = base.get("mount") or ex.report.get("mount")  # top level: no base at all
         ok = isinstance(mount, str | dict) and bool(mount)
         return {"stands": False, "mount": mount}, [] if ok else [
             "stand: the loop does not stand and report.json base.mount does not say how it "
