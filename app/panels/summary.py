@@ -57,12 +57,10 @@ def hardware_text(report: dict) -> str:
 
 def _stands(report: dict) -> str:
     base = report.get("base")
-    if base is None:
-        return "no base (Grounding column is off, or no column clears the moving links)"
-    if base["stands"]:
+    if base is not None and base["stands"]:
         return (f"yes, on a {base['plate_diameter_mm']:.0f} mm plate; its centre of mass stays "
                 f"{100 * base['com_margin_share']:.0f} % of the plate's width inside the rim")
-    return f"no: {gui_text(str(base.get('mount') or 'screw the plate down'))}"
+    return f"no: {gui_text(str(report.get('mount') or 'screw the plate down'))}"
 
 
 def card_text(parts: Parts) -> str:
