@@ -6,9 +6,10 @@ apart on screen, ``app.labels``), ``/motion/path`` trajectory,
 ``/motion/frames`` sampled moving frames, ``/motion/current`` the animated frame with its
 ``/ellipsoid``, ``/factorizations`` six factorizations' axes (Fig. 5 colours, home pose),
 ``/loop/axes`` the selected loop's axes, ``/loop/bars``, ``/loop/elbows``, ``/loop/joints``
-the linkage as solid links (``app.links``) or ``/loop/parts/i`` per-link meshes given by
-:meth:`SceneView.set_parts`, ``/loop/ghost`` the last realized linkage while the design has
-none, ``/loop/spaces/i`` the carved design spaces (moving with their links).
+the linkage as solid links (``app.links``) or ``/loop/parts/i`` and ``/loop/hardware/i``
+per-link meshes (the printed parts, ``app.printview``; :meth:`SceneView.set_parts`),
+``/loop/ghost`` the last realized linkage while the design has none, ``/loop/spaces/i`` the
+carved design spaces (moving with their links).
 
 The paper's construction aids (factorization and loop axes, the inertia ellipsoid, moving
 frames, carved design spaces) are layers that start hidden (:data:`HIDDEN_AT_START`); the
@@ -47,10 +48,14 @@ CONSTRUCTION = {"Trajectory": ("path",), "Moving frames": ("frames",),
                 "Inertia ellipsoid": ("ellipsoid",), "Factorization axes": ("facts",),
                 "Loop axes": ("axes",), "Design spaces": ()}
 SPACES_LAYER = "Design spaces"
+#: The View folder's layer of the printed parts (:meth:`SceneView.set_parts`): hidden, the
+#: solid links show instead.
+PARTS = "Printed parts"
 #: Layers hidden when the studio starts: the paper's construction aids.
 HIDDEN_AT_START = frozenset({"Moving frames", "Inertia ellipsoid", "Factorization axes",
                              "Loop axes", SPACES_LAYER})
 SPACE_COLORS = np.vstack([links.LINK_COLORS[:1], FACTOR_COLORS[:5]])
+STEEL_COLORS = np.full((6, 3), 175, np.uint8)  # the printed parts' screws, nuts and rod
 PATH_SAMPLES = 256
 FRAME_SAMPLES = 24
 
@@ -95,6 +100,9 @@ class SceneView:
         self.motion: np.ndarray | None = None
         self.spaces = links.LinkMeshes(server, "/loop/spaces", SPACE_COLORS, 0.45)  # carved
         self.parts = links.LinkMeshes(server, "/loop/parts", links.LINK_COLORS, 1.0)  # set_parts
+        self.hardware = links.LinkMeshes(server, "/loop/hardware", STEEL_COLORS, 1.0)
+        self.parts_for: Any = None  # the realization the parts stand for (None: their loop)
+        self.realization: Any = None  # the realization on screen (None: a preview or none)
         self.view: labels.View | None = None  # the camera the labels are placed for
         self.end_link: np.ndarray | None = None  # (4, 3) S_3, L, R, E_3 with an end-effector
         # the last realized linkage (joint factors, home points, radius) and, while the design
@@ -249,18 +257,34 @@ class SceneView:
         self.spaces.set(joint_factors, bodies)
 
     def set_parts(self, joint_factors: np.ndarray,
-                  meshes: list[tuple[np.ndarray, np.ndarray] | None] | None) -> None:
+                  meshes: list[tuple[np.ndarray, np.ndarray] | None] | None,
+                  hardware: list[tuple[np.ndarray, np.ndarray] | None] | None = None,
+                  shown_for: Any = None) -> None:
         """Draw the linkage of the loop ``joint_factors`` as the given per-link meshes
         (``meshes[i]``: vertices ``(V, 3)`` in link i's home frame, the world frame at
-        ``t = inf``, design units, and faces ``(F, 3)``; None: nothing for that link)
-        moving with the slider, in place of the solid links; ``meshes`` None removes them.
-        They show only while that loop is on screen (an edit falls back to the solid links
-        until new meshes come). Call from the worker, inside ``server.atomic()``, then
-        :meth:`draw_frame` and :meth:`apply_layers`."""
+        ``t = inf``, design units, and faces ``(F, 3)``; None: nothing for that link) and
+        its metal ``hardware`` (the same per link, steel grey) moving with the slider, in
+        place of the solid links and the end-effector; ``meshes`` None removes them.
+        They show only while that loop is on screen, or, with ``shown_for`` (a
+        realization), while the solution on screen has that realization: then the meshes
+        may belong to another loop of the same motion (the printed loop) and are posed by
+        their own ``joint_factors``. An edit falls back to the solid links until new meshes
+        come. Call from the worker, inside ``server.atomic()``, then :meth:`draw_frame` and
+        :meth:`apply_layers`."""
         if meshes is None:
             self.parts.clear()
+            self.hardware.clear()
+            self.parts_for = None
         else:
             self.parts.set(joint_factors, meshes)
+            self.hardware.set(joint_factors, hardware or [None] * 6)
+            self.parts_for = shown_for
+
+    def parts_shown(self) -> bool:
+        """Whether the per-link meshes of :meth:`set_parts` belong to what is on screen."""
+        if self.parts_for is None:
+            return self.parts.current(self.joint_factors)
+        return len(self.parts) > 0 and self.realization is self.parts_for
 
     # --- loop and linkage -------------------------------------------------------------------
     def set_loop(self, sol: Any, preview: Any = None, preview_radius: float | None = None
@@ -271,6 +295,7 @@ class SceneView:
         self.joint_factors = loop.joint_factors
         self.center = sol.design.pose_array[0].mean(0)
         real = sol.realization
+        self.realization = real
         self.ghost = None if real is not None or preview is not None else self.last_real
         if real is not None:
             self.points_home = np.asarray(real.points, float)
@@ -322,9 +347,12 @@ class SceneView:
             home = np.repeat(self.center[None], 12, axis=0)
         poses = loops.link_poses(self.joint_factors, t)[0]  # (6, 8)
         link_pos, link_wxyz = dq.to_pos_wxyz(poses)
-        for meshes in (self.spaces, self.parts):
-            if meshes.current(self.joint_factors):
-                meshes.move(link_pos, link_wxyz)
+        if self.spaces.current(self.joint_factors):
+            self.spaces.move(link_pos, link_wxyz)
+        if self.parts_shown():  # posed by their own loop (the printed one may be another)
+            posed = dq.to_pos_wxyz(loops.link_poses(self.parts.joint_factors, t)[0])
+            self.parts.move(*posed)
+            self.hardware.move(*posed)
         pts = dq.transform_points(np.repeat(poses, 2, axis=0), home)
         mid = 0.5 * (pts[1::2] + np.roll(pts[0::2], -1, axis=0))  # joint i: E_i S_{i+1}
         axis_segs = axis_segments(axes, mid, 0.6 * self.scale)
@@ -360,11 +388,12 @@ class SceneView:
 
     def apply_layers(self, hidden: set[str]) -> None:
         """Show or hide the layers: the linkage (solid links, or the per-link meshes of
-        :meth:`set_parts` when they belong to the loop on screen; it also needs points) and
-        the construction aids (:data:`CONSTRUCTION`)."""
-        parts = self.parts.current(self.joint_factors)
+        :meth:`set_parts` when they belong to what is on screen and :data:`PARTS` is not
+        hidden; it also needs points) and the construction aids (:data:`CONSTRUCTION`)."""
+        parts = PARTS not in hidden and self.parts_shown()
         linkage = LINKAGE not in hidden and self.points_home is not None
-        shown = {key: linkage and not (parts and key in ("bars", "elbows", "joints"))
+        shown = {key: linkage and not (parts and key in ("bars", "elbows", "joints",
+                                                         "effector"))
                  for key in LINKAGE_KEYS}
         for layer, keys in CONSTRUCTION.items():
             shown.update((key, layer not in hidden) for key in keys)
@@ -376,4 +405,5 @@ class SceneView:
         if current is not None and current.show_axes == ("Moving frames" in hidden):
             current.show_axes = "Moving frames" not in hidden
         self.parts.show(linkage and parts)
+        self.hardware.show(linkage and parts)
         self.spaces.show(SPACES_LAYER not in hidden and self.spaces.current(self.joint_factors))

@@ -31,6 +31,7 @@ from app.panels.design import Panels, writing_back
 from app.panels.drive import DrivePanel
 from app.panels.fabrication import FabricationPanel
 from app.plots import Plots
+from app.printview import PrintView
 from app.restore import RestoreOffer, offer_restore
 from app.scene import HIDDEN_AT_START, SceneView
 from app.solver import Solver, incomplete
@@ -81,6 +82,7 @@ class Studio(FileTransfers):
         self.fabrication = FabricationPanel(server, self)
         self.drive = DrivePanel(server, self, self.fabrication)
         self.plots = Plots(server)
+        self.printview = PrintView(self, self.panels_order() + 0.02)  # the printed parts
         busy = self.panels.busy  # a job longer than 0.3 s: a line under the status, no toast
         self.worker = NewestWorker(self._job, on_slow=lambda: setattr(busy, "visible", True),
                                    on_slow_done=lambda: setattr(busy, "visible", False))
@@ -197,6 +199,7 @@ class Studio(FileTransfers):
         key = level if level >= PREVIEW and stale else FRAME
         self.timings[key].append(time.perf_counter() - start)
         self.drive.update(self.solution, design.drive, level)  # planned on its own thread
+        self.printview.update(self.solution, design, level)  # built in a child process
         frame, self._frame_pending = self._frame_pending, None
         if frame == "keep" or (frame == "open" and level == FULL):
             self.frame_all(keep_direction=frame == "keep")  # targets alone if nothing solved
@@ -343,6 +346,7 @@ class Studio(FileTransfers):
         self.worker.close()
         self.status.close()
         self.drive.close()
+        self.printview.close()
         self.jobs.wait(10.0)
         try:
             self.state.autosave()

@@ -54,3 +54,13 @@ def _user_data_in_tmp(tmp_path_factory, monkeypatch):
     """Tests never write into the user's data or state folders (studio autosaves, meshes)."""
     monkeypatch.setenv("XDG_DATA_HOME", str(tmp_path_factory.getbasetemp() / "xdg"))
     monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path_factory.getbasetemp() / "xdg-state"))
+
+
+@pytest.fixture(autouse=True, scope="session")
+def _no_printed_parts():
+    """Studios in tests draw solid links only: the printed parts' builder (``app.printview``,
+    a child process of seconds per edit) is switched on by the tests that look at them.
+    Session-wide, so that module-scoped studios are built without it too."""
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("PARALOOP_STUDIO_PARTS", "0")
+        yield

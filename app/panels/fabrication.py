@@ -144,6 +144,7 @@ class FabricationPanel:
             self.studio.request(FRAME, sync=True)  # writes the kept value back
             return
         st.fab = dataclasses.replace(st.fab, **{key: value})
+        self.studio.request(FRAME)  # the status's size and the printed parts follow it
 
     def _task(self, name: str, event: Any) -> None:
         self.studio.state.add_task(name, event.client)

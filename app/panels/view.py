@@ -10,7 +10,7 @@ from typing import Any
 
 import viser
 
-from app.scene import CONSTRUCTION, FACTOR_COLOR_NAMES, LINKAGE
+from app.scene import CONSTRUCTION, FACTOR_COLOR_NAMES, LINKAGE, PARTS
 from paraloop_core.algebra import factor
 
 #: Tooltips of the construction layers (the paper's terms and sections).
@@ -40,13 +40,18 @@ class ViewPanel:
         with gui.add_folder("View"):
             linkage = gui.add_checkbox(
                 "Show the linkage", initial_value=LINKAGE not in hidden,
-                hint="the loop as an object: each link a solid bar of its true radius with "
-                     "hubs at its joints, moving with the cycle")
+                hint="the loop as an object moving with the cycle: its printed parts, or "
+                     "each link a solid bar of its true radius with hubs at its joints")
+            parts = gui.add_checkbox(
+                "Show printed parts", initial_value=PARTS not in hidden,
+                hint="the parts Export all would print (links with their thickness, screws, "
+                     "the base), built in the background a moment after each change; off, "
+                     "or while they are being built, solid bars stand in for them")
             self.thickness = gui.add_slider(
                 "Draw bars thicker", min=1.0, max=10.0, step=0.5, initial_value=1.0,
                 hint="display only: bars and hubs drawn this many times their true radius "
                      "(1 = true size; the design and its exports are unchanged)")
-        self.layers: dict[str, Any] = {LINKAGE: linkage}
+        self.layers: dict[str, Any] = {LINKAGE: linkage, PARTS: parts}
         with gui.add_folder("Construction", expand_by_default=False):
             gui.add_markdown("The paper's construction aids (off at start).")
             for name in CONSTRUCTION:

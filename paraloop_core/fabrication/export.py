@@ -128,9 +128,8 @@ def files(asm: Assembly, report: dict, material: profiles.Material, *, rhino: bo
           ) -> tuple[list[tuple[str, bytes]], dict[str, trimesh.Trimesh], list]:
     """``(files, meshes, placements)``: the module docstring's files (without the guide);
     ``report`` gains ``print_layout``, ``parts`` and ``bill_of_materials``."""
-    meshes = part_meshes(asm)
+    entries, meshes, placements = report_entries(asm, material)
     out = [(f"{name}.stl", tm.export(file_type="stl")) for name, tm in meshes.items()]
-    placements = layout.bed_layout(meshes, downs(asm), asm.printer.bed_mm)
     out += layout.plate_files(meshes, placements)
     out.append(("assembly.glb", assembly_glb(asm, meshes)))
     if rhino:
@@ -138,13 +137,25 @@ def files(asm: Assembly, report: dict, material: profiles.Material, *, rhino: bo
 
         out.append(("paraloop.3dm", rhino_mod.assembly_3dm(
             meshes, {p.name: color_of(p.link) for p in asm.parts})))
-    report["print_layout"] = layout.layout_entry(placements, asm.printer.bed_mm)
-    big = [p["name"] for p in report["print_layout"]["parts"] if not p["fits_bed"]]
+    report.update(entries)
+    big = [p["name"] for p in entries["print_layout"]["parts"] if not p["fits_bed"]]
     if big:  # only at a size the maker chose: the automatic size shrinks until all fit
         report.setdefault("warnings", []).append(
             f"{', '.join(big)} do{'es' * (len(big) == 1)} not fit the bed laid on its print "
             "face: choose a smaller size or a larger printer")
-    report["parts"] = parts_entry(asm, meshes, material)
-    report["bill_of_materials"] = bill_of_materials(asm, material)
-    report["scale_mm_per_unit"] = asm.scale
     return out, meshes, placements
+
+
+def report_entries(asm: Assembly, material: profiles.Material
+                   ) -> tuple[dict, dict[str, trimesh.Trimesh], list]:
+    """``(entries, meshes, placements)``: what the export adds to the report
+    (``print_layout``, ``parts``, ``bill_of_materials``, ``scale_mm_per_unit``), the parts'
+    meshes (print frame, mm) and their bed placements; :func:`files` without the files (the
+    studio's summary of the parts on screen)."""
+    meshes = part_meshes(asm)
+    placements = layout.bed_layout(meshes, downs(asm), asm.printer.bed_mm)
+    entries = {"print_layout": layout.layout_entry(placements, asm.printer.bed_mm),
+               "parts": parts_entry(asm, meshes, material),
+               "bill_of_materials": bill_of_materials(asm, material),
+               "scale_mm_per_unit": asm.scale}
+    return entries, meshes, placements
