@@ -162,7 +162,7 @@ def test_wall_slack_is_the_room_under_each_bore():
             a = np.cross(j.w, [1.0, 0, 0] if abs(j.w[0]) < 0.9 else [0, 1.0, 0])
             a /= np.linalg.norm(a)
             ring = np.outer(np.cos(phi), a) + np.outer(np.sin(phi), np.cross(j.w, a))
-            reach = float((ring @ p.down).max()) * (bore + wall)
+            reach = float((ring @ p.down).max()) * (bore + wall + flat.WALL_ROOM_MM)
             room += [level - p.down @ j.at(s) - reach for s in (j.upper if up else j.lower)]
         assert slack == pytest.approx(min(room), abs=1e-5)  # the ends of the bores decide
         assert flat.wall_slack(p.down, level - slack - 1e-3, sides, wall) < 0

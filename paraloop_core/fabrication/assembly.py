@@ -118,7 +118,7 @@ def _link(plan: sizing.Plan, i: int, bars: np.ndarray, layouts: tuple[Joint, ...
     # bar (the bar's own face on the cutting plane can leave slivers at one tessellation
     # after another; cutting it keeps every wall while the slack allows)
     tries = [(more, 0.0, down) for more in RETESSELLATE]
-    if (slack if slack >= 0 else flat.LIFT_ROOM_MM) >= 2 * INTO_BAR_MM:
+    if (slack if slack >= 0 else flat.WALL_ROOM_MM) >= 2 * INTO_BAR_MM:
         tries.append((RETESSELLATE[0], -INTO_BAR_MM, down))
     # last, the flat turned a little about the bar (a coincidence of the geometry itself)
     axis = (main[1] - main[0]) / np.linalg.norm(main[1] - main[0])

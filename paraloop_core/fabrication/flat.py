@@ -25,9 +25,9 @@ from paraloop_core.fabrication.joints import Joint
 
 #: Turns about the bar tried for its print flat (degrees).
 TURNS_DEG = np.arange(0.0, 360.0, 10.0)
-#: Room (mm) past the deepest wall where a link is cut below its bar's face (:func:`lift`):
-#: two layers, so that the wall is not the minimum exactly.
-LIFT_ROOM_MM = 0.4
+#: Room (mm) a flat keeps beyond a bore's wall (:func:`room`): two layers, so that a cut
+#: never leaves the printer's minimum wall exactly (polygons and the slicer take a little).
+WALL_ROOM_MM = 0.4
 
 
 def down_candidates(bar: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
@@ -43,9 +43,10 @@ def down_candidates(bar: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
 
 
 def room(j: Joint, upper: bool, wall: float) -> float:
-    """Radius (mm) about joint ``j``'s axis the flat must leave to one side of it: the bore
-    and its ``wall`` (a washer a little wider than that bears on the rest of the face)."""
-    return j.bore[1 if upper else 0] + wall
+    """Radius (mm) about joint ``j``'s axis the flat must leave to one side of it: the bore,
+    its ``wall`` and :data:`WALL_ROOM_MM` (a washer a little wider bears on the rest of the
+    face)."""
+    return j.bore[1 if upper else 0] + wall + WALL_ROOM_MM
 
 
 def depths(downs: np.ndarray, joints: list[tuple[Joint, bool]], wall: float) -> np.ndarray:
@@ -82,6 +83,6 @@ def least_depth(bar: tuple[np.ndarray, np.ndarray], joints: list[tuple[Joint, bo
 
 def lift(slack: float) -> float:
     """How far (mm) below its bar's down face a link whose print flat has ``slack`` is cut:
-    0 where the walls allow the bar's face, else past the deepest wall by
-    :data:`LIFT_ROOM_MM` (the bosses' cut faces stand on the bed, the bar over support)."""
-    return 0.0 if slack >= 0 else LIFT_ROOM_MM - float(slack)
+    0 where the walls allow the bar's face, else at the deepest wall's :func:`room` (the
+    bosses' cut faces stand on the bed, the bar over support)."""
+    return max(0.0, -float(slack))
