@@ -25,8 +25,8 @@ POLYGON_TOLERANCE = 0.01
 #: printer makes a wall that thin, so a real one is not missed in practice.
 FOLD = 0.005
 
-#: Ray-face box tests per chunk: the (chunk, faces, 3) masks stay a few tens of MB.
-_CHUNK_ELEMENTS = 2_000_000
+#: Rays per run (neighbours along the part) whose box pre-selects the triangles they test.
+_RUN = 64
 
 
 def _first_exit(origins: np.ndarray, dirs: np.ndarray, tris: np.ndarray,
@@ -40,11 +40,15 @@ def _first_exit(origins: np.ndarray, dirs: np.ndarray, tris: np.ndarray,
     lo_r, hi_r = np.minimum(origins, ends), np.maximum(origins, ends)
     scale = float(np.ptp(tris.reshape(-1, 3), axis=0).max())
     out = np.full(len(origins), float(cap))
-    step = max(1, _CHUNK_ELEMENTS // max(len(tris), 1))
-    for s in range(0, len(origins), step):
-        near = np.all((lo_r[s:s + step, None] <= hi_t) & (hi_r[s:s + step, None] >= lo_t), -1)
+    # rays in runs along the part's longest extent: each run's box meets few triangles, so
+    # the ray-triangle box tests run on those only
+    order = np.argsort(origins[:, int(np.argmax(np.ptp(origins, axis=0)))], kind="stable")
+    for run in np.array_split(order, max(1, len(order) // _RUN)):
+        cand = np.flatnonzero(np.all((lo_r[run].min(0) <= hi_t) & (hi_r[run].max(0) >= lo_t),
+                                     axis=1))
+        near = np.all((lo_r[run, None] <= hi_t[cand]) & (hi_r[run, None] >= lo_t[cand]), -1)
         r, f = np.nonzero(near)
-        r_all = r + s
+        r_all, f = run[r], cand[f]
         o, d = origins[r_all], dirs[r_all]
         v0, e1, e2 = tris[f, 0], tris[f, 1] - tris[f, 0], tris[f, 2] - tris[f, 0]
         p = np.cross(d, e2)
