@@ -9,7 +9,7 @@ import pytest
 from independent.segdist import segment_distance
 
 from paraloop_core.errors import FabricationError, RealizationError
-from paraloop_core.fabrication import bed, printable, profiles, sizing, stiffness
+from paraloop_core.fabrication import bed, joints, printable, profiles, sizing, stiffness
 
 GENERIC = profiles.PRINTERS["generic"]
 ROD = profiles.DEFAULT_ROD
@@ -129,7 +129,9 @@ def test_min_radii_and_caps(bounds):
     assert sizing.min_radii(bounds, k, GENERIC, "m3", 3) == pytest.approx(np.full(6, flat))
     assert [sizing.bar_cap(s) for s in (100.0, 200.0, 250.0, 400.0)] == pytest.approx(
         [4.5, 5.6, 7.0, 8.0])
-    assert sizing.min_boss(GENERIC, "m3", ROD) == pytest.approx(3.0 + 0.3 + 0.1 + 1.6)
+    # the rod's running bore (3 + 0.3 + 0.1) with the wall and its room
+    assert sizing.min_boss(GENERIC, "m3", ROD) == pytest.approx(
+        3.0 + 0.3 + 0.1 + 1.6 + joints.BOSS_ROOM_MM)
 
 
 def _lw(p: sizing.Plan, b: sizing.Bounds) -> np.ndarray:

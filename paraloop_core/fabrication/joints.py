@@ -48,6 +48,8 @@ MIN_OUTER_MM = 0.5
 COVER = 0.6
 #: Thread (mm) that must pass the lock nut's insert.
 PROTRUDE_MM = 1.0
+#: Room (mm) a boss keeps beyond its bore's wall (:func:`min_boss_radius`).
+BOSS_ROOM_MM = 0.4
 
 
 @dataclass(frozen=True)
@@ -137,9 +139,10 @@ def bore_radius(kind: str, printer: Printer, rod: Rod | None = None, fixed: bool
 
 
 def min_boss_radius(kind: str, printer: Printer, rod: Rod | None = None) -> float:
-    """Smallest boss radius (mm): the bore with a wall around it, and a face the washers bear
-    on."""
-    wall = bore_radius(kind, printer, rod) + printer.wall_mm
+    """Smallest boss radius (mm): the bore with a wall around it (and :data:`BOSS_ROOM_MM`:
+    never the printer's minimum exactly, a polygon's chords are a little short), and a face
+    the washers bear on."""
+    wall = bore_radius(kind, printer, rod) + printer.wall_mm + BOSS_ROOM_MM
     if kind in profiles.FASTENERS:
         return max(wall, fastener_of(kind).washer_d_mm / 2)
     return wall
