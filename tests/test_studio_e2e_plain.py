@@ -102,10 +102,13 @@ def test_autosave_after_a_release_is_on_disk_during_the_search(browser, tmp_path
         try:
             assert app.worker.wait_idle(60)
             undo = len(app.state.undo_stack)
-            drag_gizmo(page, client, app.scene.gizmos[3], 150.0)
-            released = time.time()
-            page.mouse.up()
-            assert wait_for(lambda: len(app.state.undo_stack) == undo + 1, 10), "no release"
+            for _ in range(3):  # a drag that missed the gizmo (drawn a frame late on a loaded
+                drag_gizmo(page, client, app.scene.gizmos[3], 150.0)  # machine) is tried again:
+                released = time.time()  # the subject here is the autosave after a release
+                page.mouse.up()
+                if wait_for(lambda: len(app.state.undo_stack) == undo + 1, 10):
+                    break
+            assert len(app.state.undo_stack) == undo + 1, "no release"
             assert searching.wait(30), "no realization search after the release"
             pose = app.state.design.poses[3].position
             assert wait_for(lambda: path.exists() and np.allclose(
