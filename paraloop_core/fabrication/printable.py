@@ -405,9 +405,11 @@ def _level_warnings(plan: sizing.Plan) -> list[str]:
                 "three times their predicted deflection: handle it gently near its tightest "
                 "pose (report: sizing.limiting_pair)"]
     if plan.level == 3:
-        width = float(plan.radii.min() * sizing.FLATS)
-        return [f"the thinnest bar is {width:.1f} mm wide, under the {sizing.WIDTH_MM:g} mm "
-                "a printed bar should have: the best this realization's certificate allows "
+        width = plan.radii * sizing.FLATS
+        lw = float(np.max(plan.deflection.lengths / width))
+        return [f"bars down to {width.min():.2f} mm wide and up to {lw:.0f} times as long as "
+                f"wide, beyond the {sizing.WIDTH_MM:g} mm and {sizing.LW_MAX:g} a printed bar "
+                "should keep: the best this realization's certificate allows; handle it gently "
                 "(report: sizing.limiting_pair names the pair that limits it)"]
     return []
 
