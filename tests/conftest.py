@@ -64,3 +64,27 @@ def _no_printed_parts():
     with pytest.MonkeyPatch.context() as mp:
         mp.setenv("PARALOOP_STUDIO_PARTS", "0")
         yield
+
+
+def json_paths(node, prefix: tuple = ()):
+    """Every path (tuple of keys and indices) into a JSON value, the root ``()`` first."""
+    yield prefix
+    if isinstance(node, dict):
+        for k, v in node.items():
+            yield from json_paths(v, (*prefix, k))
+    elif isinstance(node, list):
+        for i, v in enumerate(node):
+            yield from json_paths(v, (*prefix, i))
+
+
+def json_get(node, path: tuple):
+    """The value at ``path`` (:func:`json_paths`) in a JSON value."""
+    for k in path:
+        node = node[k]
+    return node
+
+
+def numeric_paths(node) -> list[tuple]:
+    """Paths of every number (not a bool) in a JSON value."""
+    return [p for p in json_paths(node) if isinstance(json_get(node, p), (int, float))
+            and not isinstance(json_get(node, p), bool)]

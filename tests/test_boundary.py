@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import numeric_paths
 
 from app.cli.main import main
 from paraloop_core import design as dm
@@ -59,16 +60,7 @@ def test_solve_never_imports_the_studio_or_mesh_libraries(tmp_path):
 
 
 # --- the design file: numbers of any size, JSON spelling ---------------------------------------
-def _numeric_paths(node, prefix=()):
-    """Paths of every number (not bool) in a JSON value."""
-    if isinstance(node, dict):
-        for k, v in node.items():
-            yield from _numeric_paths(v, (*prefix, k))
-    elif isinstance(node, list):
-        for i, v in enumerate(node):
-            yield from _numeric_paths(v, (*prefix, i))
-    elif isinstance(node, (int, float)) and not isinstance(node, bool):
-        yield prefix
+
 
 
 EVOLUTION = ("w0", "q", "tol", "loop_ratio", "smooth_drive", "max_iterations", "starts", "seed",
@@ -90,7 +82,7 @@ def _every_numeric_field() -> list[tuple]:
                                     "clearance": 0.01},
             "realization": {**TV8.get("realization", {}), "rho": 0.01, "d": 0.05,
                             "fixed": {"0": 0.5}}}
-    paths = set(_numeric_paths(base))
+    paths = set(numeric_paths(base))
     paths |= {("evolution", k) for k in EVOLUTION} | {("drive", k) for k in DRIVE}
     paths |= {("motion", "mu"), ("loop",)}
     return sorted(paths, key=str), base

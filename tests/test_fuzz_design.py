@@ -25,6 +25,7 @@ import warnings
 from pathlib import Path
 
 import pytest
+from conftest import json_get, json_paths, numeric_paths
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -65,35 +66,19 @@ KEYS = ["foo", "p", "d", "rho", "max_k", "seed", "workers", "max_iterations", "s
         "drive", "motor", "cycle_time_s", "max_speed_ratio", "smooth_drive"]
 
 
-def _paths(node, prefix=()):
-    yield prefix
-    if isinstance(node, dict):
-        for k, v in node.items():
-            yield from _paths(v, (*prefix, k))
-    elif isinstance(node, list):
-        for i, v in enumerate(node):
-            yield from _paths(v, (*prefix, i))
-
-
-def _get(node, path):
-    for k in path:
-        node = node[k]
-    return node
-
-
 @st.composite
 def mutated_designs(draw, names=tuple(BASES)):
     """An example design with 1..3 random edits: replace, delete, add a key, nest, repeat."""
     data = copy.deepcopy(BASES[draw(st.sampled_from(names))])
     for _ in range(draw(st.integers(1, 3))):
-        paths = list(_paths(data))
+        paths = list(json_paths(data))
         path = draw(st.sampled_from(paths))
         op = draw(st.sampled_from(["replace", "replace", "delete", "add", "nest", "repeat"]))
         if not path:
             if op == "add" and isinstance(data, dict):
                 data[draw(st.sampled_from(KEYS))] = draw(json_values)
             continue
-        parent, key = _get(data, path[:-1]), path[-1]
+        parent, key = json_get(data, path[:-1]), path[-1]
         value = parent[key]
         if op == "replace":
             parent[key] = draw(json_values)
@@ -223,9 +208,8 @@ FULL = {**BASES["tv8.json"],
                       "virtual": 1, "init": "random", "free_reference": False},
         "drive": {"motor": 0, "cycle_time_s": 10.0, "max_speed_ratio": 2.0,
                   "max_accel_rad_s2": 1.0, "density_kg_m3": 1240.0}}
-NUMERIC = [p for p in _paths(FULL)
-           if isinstance(_get(FULL, p), (int, float)) and not isinstance(_get(FULL, p), bool)]
-STRINGS = [p for p in _paths(FULL) if isinstance(_get(FULL, p), str)] + [
+NUMERIC = numeric_paths(FULL)
+STRINGS = [p for p in json_paths(FULL) if isinstance(json_get(FULL, p), str)] + [
     ("end_effector", "mesh"), ("motion", "criterion"), ("motion", "mu")]
 
 any_int = (st.integers() | st.integers(-(10**5000), 10**5000)
@@ -239,7 +223,7 @@ long_text = (st.text(min_size=0, max_size=300)
 
 def _replaced(data: dict, path: tuple, value) -> dict:
     out = copy.deepcopy(data)
-    _get(out, path[:-1])[path[-1]] = value
+    json_get(out, path[:-1])[path[-1]] = value
     return out
 
 
@@ -251,7 +235,8 @@ def sized_fields(draw):
         return _replaced(FULL, draw(st.sampled_from(NUMERIC)), draw(any_int))
     if draw(st.booleans()):
         return _replaced(FULL, draw(st.sampled_from(STRINGS)), draw(long_text))
-    path = draw(st.sampled_from([p for p in _paths(FULL) if isinstance(_get(FULL, p), dict)]))
+    path = draw(st.sampled_from([p for p in json_paths(FULL)
+                                 if isinstance(json_get(FULL, p), dict)]))
     return _replaced(FULL, (*path, draw(long_text)), 1)
 
 

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field, replace
 import manifold3d as m3d
 import numpy as np
 
+from paraloop_core.algebra import dq
 from paraloop_core.errors import FabricationError
 from paraloop_core.fabrication import flat, layout, parts, sizing
 from paraloop_core.fabrication.joints import Joint
@@ -122,7 +123,8 @@ def _link(plan: sizing.Plan, i: int, bars: np.ndarray, layouts: tuple[Joint, ...
         tries.append((RETESSELLATE[0], -INTO_BAR_MM, down))
     # last, the flat turned a little about the bar (a coincidence of the geometry itself)
     axis = (main[1] - main[0]) / np.linalg.norm(main[1] - main[0])
-    tries += [(RETESSELLATE[0], 0.0, _turned(down, axis, a)) for a in TURN_DEG]
+    turns = dq.rotation_about_line(axis, np.zeros(3), np.radians(TURN_DEG))  # (2, 8)
+    tries += [(RETESSELLATE[0], 0.0, d) for d in dq.transform_points(turns, down)]
     for more, into, d in tries:
         level = float(np.max(bars.reshape(-1, 3) @ d)) + r * sizing.APOTHEM
         s = flat.wall_slack(d, level, sides, printer.wall_mm)
@@ -132,11 +134,6 @@ def _link(plan: sizing.Plan, i: int, bars: np.ndarray, layouts: tuple[Joint, ...
     raise FabricationError(f"link_{i} comes out pinched (two vertices at one position) at "
                            "every tessellation and flat tried", "not-watertight")
 
-
-def _turned(v: np.ndarray, axis: np.ndarray, deg: float) -> np.ndarray:
-    """``v`` turned by ``deg`` about the unit ``axis`` (Rodrigues)."""
-    a = np.radians(deg)
-    return v * np.cos(a) + np.cross(axis, v) * np.sin(a) + axis * (axis @ v) * (1 - np.cos(a))
 
 
 def _faces(solid: m3d.Manifold) -> np.ndarray:

@@ -31,12 +31,12 @@ from dataclasses import dataclass
 
 import manifold3d as m3d
 import numpy as np
-import trimesh
 
 from paraloop_core.algebra import dq, poly
 from paraloop_core.errors import FabricationError
 from paraloop_core.fabrication import parts
 from paraloop_core.fabrication.assembly import Assembly
+from paraloop_core.fabrication.parts import part_trimesh
 from paraloop_core.linkage import loops
 from paraloop_core.realization.clearance import segment_distance
 from paraloop_core.realization.motion_bound import sound_displacement_bounds, try_motion_bound
@@ -46,13 +46,6 @@ Progress = Callable[[float, str], None]
 #: of refinement.
 MAX_EXACT_CHECKS = 3000
 REFINE_ROUNDS = 8
-
-
-def part_trimesh(solid: m3d.Manifold) -> trimesh.Trimesh:
-    """A solid as a merged trimesh (mm, home frame)."""
-    mesh = solid.to_mesh()
-    return trimesh.Trimesh(np.asarray(mesh.vert_properties[:, :3], float),
-                           np.asarray(mesh.tri_verts, np.int64), process=True)
 
 
 @dataclass(frozen=True)

@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 
 import manifold3d as m3d
 import numpy as np
+import trimesh
 
 from paraloop_core.errors import FabricationError
 from paraloop_core.fabrication import profiles
@@ -266,18 +267,18 @@ def piece_parts(joints: tuple[Joint, ...]) -> list[Part]:
     return out
 
 
+def part_trimesh(solid: m3d.Manifold) -> trimesh.Trimesh:
+    """A solid as a merged trimesh (mm, home frame): what the export writes."""
+    mesh = solid.to_mesh()
+    return trimesh.Trimesh(np.asarray(mesh.vert_properties[:, :3], float),
+                           np.asarray(mesh.tri_verts, np.int64), process=True)
+
+
 def pinched(man: m3d.Manifold) -> bool:
     """Two vertices at one position, or within trimesh's merge tolerance (a boolean can pinch
-    a solid so): valid for manifold3d, but a slicer that merges vertices by position (and the
-    exported mesh, merged by trimesh) reads an open mesh there."""
-    import trimesh  # the exported meshes are merged by trimesh: the same test decides
-
-    mesh = man.to_mesh()
-    v = np.asarray(mesh.vert_properties[:, :3], np.float32)
-    if len(np.unique(v, axis=0)) < len(v):
-        return True
-    tm = trimesh.Trimesh(v.astype(float), np.asarray(mesh.tri_verts, np.int64), process=True)
-    return not tm.is_watertight
+    a solid so): valid for manifold3d, but the exported mesh, merged by position as a slicer
+    merges it, is open there."""
+    return not part_trimesh(man).is_watertight
 
 
 def check_solid(man: m3d.Manifold, name: str) -> None:
