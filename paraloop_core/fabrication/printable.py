@@ -194,11 +194,15 @@ def choose(candidates: Iterable[Candidate], opts: Options, progress: Progress | 
 
 
 def _fit_and_build(real: Realization, ee: object | None, plan: sizing.Plan, opts: Options
-                   ) -> tuple[Assembly, sizing.Plan]:
-    """The assembly of ``plan``; with an automatic size it shrinks while a built link does not
-    fit the bed in its print orientation."""
-    end_bars = None
+                   ) -> tuple[Assembly, sizing.Plan, str | None]:
+    """The assembly of ``plan`` and how P became part of link 3 (:mod:`endlink`'s method;
+    None without an end-effector); with an automatic size it shrinks while a built link does
+    not fit the bed in its print orientation."""
+    end_bars, el = None, None
     if ee is not None:
+        from paraloop_core.fabrication import endlink
+
+        el = endlink.end_link(ee, real.points)
         # the bars S_3 L and R E_3 end on P's corners; ending exactly there left the union
         # pinched at that point (two vertices at one position: an open mesh for a slicer):
         # a hair (END_INSET of the way to P's centroid) inside P instead
@@ -206,24 +210,21 @@ def _fit_and_build(real: Realization, ee: object | None, plan: sizing.Plan, opts
         mid = np.asarray(ee.effector.vertices, float).mean(axis=0)
         end_bars[0, 1] += END_INSET * (mid - end_bars[0, 1])
         end_bars[1, 0] += END_INSET * (mid - end_bars[1, 0])
-    extras = None
-    if ee is not None:
-        from paraloop_core.fabrication import endlink
-
-        el = endlink.end_link(ee, real.points)
-        solid = endlink.solid_manifold(el, plan.scale)
-        extras = {3: (solid, parts.principal_capsules(solid))}
     for _ in range(4):
+        extras = None
+        if el is not None:  # P in mm at this plan's scale
+            solid = endlink.solid_manifold(el, plan.scale)
+            extras = {3: (solid, parts.principal_capsules(solid))}
         asm = assembly.assemble(plan, real.points, real.joint_factors, opts.printer,
                                 kind_of(plan), end_bars=end_bars, extras=extras)
         ext = np.array([layout.laid_extent(p.manifold.to_mesh().vert_properties[:, :3],
                                            p.down) for p in asm.links])
         grow = float(bed.laid_fit_factor(ext, opts.printer).min())  # on their print flats
         if grow >= 1.0 or opts.size_mm is not None:
-            return asm, plan
+            break
         plan = sizing.plan(real, opts.printer, opts.material, kind_of(plan), opts.rod,
                            size_mm=plan.size_mm * min(grow, 0.99))
-    return asm, plan
+    return asm, plan, None if el is None else el.method
 
 
 def _ground(asm: Assembly, opts: Options) -> tuple[Assembly, base.Base | None, list[str]]:
@@ -346,7 +347,7 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
         progress(0.25, "building the parts")
     for n, (cand, real, ee, plan) in enumerate(ranked):
         try:
-            asm, plan = _fit_and_build(real, ee, plan, opts)
+            asm, plan, ee_method = _fit_and_build(real, ee, plan, opts)
             break
         except FabricationError as exc:  # a link cut through or pinched: the next one
             if exc.reason not in ("falls-apart", "not-watertight") or n == len(ranked) - 1:
@@ -372,16 +373,14 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
         "joints": [joints.to_dict(j) for j in asm.joints],
         "verification": ver, "warnings": warnings + _level_warnings(plan),
         "print_flat_slack_mm": asm.slack.tolist()}
+    # how the loop is held where no base stands on its own (None: it stands)
     if b is not None:
         report["base"] = base.to_dict(b, opts.printer.bed_mm)
-    # how the loop is held where no base stands on its own (None: it stands)
-    report["mount"] = (None if b is not None and b.stands else b.mount if b is not None else
-                       NO_BASE if opts.ground else "exported without a base: " + HOLD)
-    if ee is not None:  # how P became part of link 3 (endlink: closed, hull or thickened)
-        from paraloop_core.fabrication import endlink
-
-        report["end_effector"] = {"link": 3,
-                                  "method": endlink.end_link(ee, real.points).method}
+        report["mount"] = None if b.stands else b.mount
+    else:
+        report["mount"] = NO_BASE if opts.ground else "exported without a base: " + HOLD
+    if ee_method is not None:  # how P became part of link 3 (closed, hull or thickened)
+        report["end_effector"] = {"link": 3, "method": ee_method}
     masses, centers = base.link_masses(asm, opts.material.density_g_cm3)
     resting = b.link if b is not None else 0
     up = b.up if b is not None else np.array([0.0, 0.0, 1.0])
