@@ -41,7 +41,7 @@ def run_one(item: tuple[str, object], check: Path | None = None) -> dict:
     row: dict = {"design": name}
     try:
         design = pl.load_design(source) if isinstance(source, Path) else \
-            pl.design_from_dict(random_design(int(source), 1.0))
+            pl.design_from_dict(random_design(*source))
         sol = pl.solve(design)
         if sol.realization is None:
             return {**row, "outcome": "not realized", "time": time.perf_counter() - t0}
@@ -103,12 +103,14 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--start", type=int, default=0, help="first random seed")
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--no-examples", action="store_true")
+    ap.add_argument("--scale", type=float, default=1.0,
+                    help="unit of the random designs' positions (e.g. 1e-6, 1e8)")
     ap.add_argument("--check", type=Path, default=None, metavar="DIR",
                     help="write the exports here and run the independent checker on them")
     args = ap.parse_args(argv)
     items = [] if args.no_examples else [
         (p.stem, p) for p in sorted((ROOT / "assets" / "designs").glob("*.json"))]
-    items += [(f"random-{s}", s) for s in range(args.start, args.start + args.n)]
+    items += [(f"random-{s}", (s, args.scale)) for s in range(args.start, args.start + args.n)]
     pool = Pool(args.workers) if args.workers > 1 else None
     rows = []
     one = partial(run_one, check=args.check)
