@@ -4,7 +4,10 @@ The design's own realization is certified for the paper's thin bars (offset ``d`
 polyline): its joints are millimetres long at any printable size. :func:`candidates` offers
 roomier realizations instead: the design's loop first, then the other eight, each with the
 joint offset that gives pins of :data:`PIN_FRACTIONS` of the loop's extent and bars of
-:data:`RHO_FRACTIONS` of it, each a new search with the same certificate.
+:data:`RHO_FRACTIONS` of it, each a new search with the same certificate. Between them come
+the roomy realizations of every loop (:mod:`realization.roomy`: polylines drawn for room per
+extent rather than shortness, certified the same way), which many generic designs need: their
+shortest polylines pass so close that no offset leaves room for real joints.
 :func:`fabrication.printable.make` picks among them and builds the parts; :func:`export`
 writes the export folder, whose ``result.json`` is the printed loop's result (the format of
 ``paraloop solve``), so anyone can check the parts against the motion they will make, and whose
@@ -26,7 +29,7 @@ from paraloop_core.fabrication import export as export_files
 from paraloop_core.fabrication.printable import Candidate, Options, Printed
 from paraloop_core.linkage import drive_plan
 from paraloop_core.pipeline import Solution
-from paraloop_core.realization import polyline, realize
+from paraloop_core.realization import polyline, realize, roomy
 from paraloop_core.result import result_to_dict
 
 #: Pin lengths (the offset d) of the candidates as shares of the loop's extent, best first:
@@ -35,6 +38,11 @@ from paraloop_core.result import result_to_dict
 PIN_FRACTIONS = (0.075, 0.095, 0.06, 0.045)
 #: Bar radius of the realization search as a share of the offset d: the certified gaps.
 RHO_FRACTIONS = (0.5, 0.35)
+#: The design's own loop's candidates tried before the roomy ones (its others come after).
+FIRST_OWN = 2
+#: Pin length (the offset d) of a roomy candidate (:mod:`roomy`), a share of its polyline's
+#: extent.
+ROOMY_PIN = 0.06
 #: Work budget of each candidate search (:meth:`realize.Search.work`; about 0.3 ms a unit):
 #: more for the design's own loop, the one worth printing.
 WORK, WORK_OWN = 10_000, 25_000
@@ -93,11 +101,43 @@ def realize_variant(sol: Solution, loop: int, d_fraction: float, rho_fraction: f
         "status": "found", "attempts": [], "fallback": None})
 
 
+def roomy_variant(sol: Solution, loop: int, pin: float) -> Solution:
+    """``sol`` realized anew on ``loop`` by :func:`roomy.realize_roomy` (pins ``pin`` of the
+    polyline's extent; the design's fixed vertices, no end-effector); raises
+    :class:`RealizationError` when none of its polylines is certified."""
+    jf, in_unit = sol.search_factors(loop)
+    rs = sol.design.realization
+    real = roomy.realize_roomy(jf, dict(rs.fixed), in_unit, pin=pin)
+    rs = replace(rs, p=float(roomy.FINE_P), d=real.separation, rho=real.radius)
+    return replace(sol, design=replace(sol.design, loop=loop, realization=rs),
+                   realization=real, end_effector=None, realization_report={
+                       "status": "found", "attempts": [], "fallback": None})
+
+
+def _roomy_candidates(sol: Solution, made: list[Solution]) -> Iterator[Candidate]:
+    """Roomy realizations (:mod:`roomy`) of every loop, the most promising loop first."""
+    rs = sol.design.realization
+    promise = {}
+    for i in range(len(sol.loops)):
+        jf, in_unit = sol.search_factors(i)
+        promise[i] = roomy.promise(jf, dict(rs.fixed), in_unit)
+    for loop in sorted(promise, key=lambda i: -promise[i]):
+        def run(loop=loop) -> tuple:
+            s = roomy_variant(sol, loop, ROOMY_PIN)
+            made.append(s)
+            return s.realization, None
+
+        yield Candidate(f"loop {loop}, roomy polyline, offset d = {ROOMY_PIN:g} of its extent",
+                        loop, run)
+
+
 def candidates(sol: Solution, printer: printable.Printer, made: list[Solution]
                ) -> Iterator[Candidate]:
-    """Lazy candidates (module docstring), best first: the design's loop (roomiest first),
-    then every other loop; each solution a candidate realizes is appended to ``made`` (the
-    chosen one's result is written)."""
+    """Lazy candidates (module docstring), best first: the design's loop (roomiest first;
+    after :data:`FIRST_OWN` of them, without an end-effector, every loop's roomy
+    realization), then every other loop;
+    each solution a candidate realizes is appended to ``made`` (the chosen one's result is
+    written)."""
     _, length, ext = expected_size(sol, printer)
     mine = sol.design.loop
     # the design's loop first; the other loops from the farthest from a singular pose
@@ -108,8 +148,10 @@ def candidates(sol: Solution, printer: printable.Printer, made: list[Solution]
              (mine, PIN_FRACTIONS[1], RHO_FRACTIONS[1]), (mine, PIN_FRACTIONS[2],
                                                            RHO_FRACTIONS[1]),
              (mine, PIN_FRACTIONS[3], RHO_FRACTIONS[0])]
-    order += [(i, PIN_FRACTIONS[0], RHO_FRACTIONS[1]) for i in others]
-    for loop, pin, rf in order:
+    later = [(i, PIN_FRACTIONS[0], RHO_FRACTIONS[1]) for i in others]
+    for n, (loop, pin, rf) in enumerate(order + later):
+        if n == FIRST_OWN and sol.design.end_effector is None:
+            yield from _roomy_candidates(sol, made)
         d_fraction = pin * ext / length
 
         def run(loop=loop, d_fraction=d_fraction, rf=rf) -> tuple:

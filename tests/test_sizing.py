@@ -9,7 +9,7 @@ import pytest
 from independent.segdist import segment_distance
 
 from paraloop_core.errors import FabricationError, RealizationError
-from paraloop_core.fabrication import bed, joints, printable, profiles, sizing, stiffness
+from paraloop_core.fabrication import bed, joints, printable, profiles, rows, sizing, stiffness
 
 GENERIC = profiles.PRINTERS["generic"]
 ROD = profiles.DEFAULT_ROD
@@ -27,7 +27,7 @@ def capsules(e: int, radius: np.ndarray, boss: np.ndarray, env: np.ndarray
                                                     if env[j, 1] > 0 else [])
 
 
-def worst_room(b: sizing.Bounds, k: float, radius: np.ndarray, boss: np.ndarray,
+def worst_room(b: rows.Bounds, k: float, radius: np.ndarray, boss: np.ndarray,
                env: np.ndarray, gaps: np.ndarray, samples: int = 720) -> float:
     """Least ``distance - radii - reaches - gap`` (mm) of every pair of capsules that must keep
     a gap, the distance of their centre segments measured over the cycle at ``samples``
@@ -59,26 +59,26 @@ def worst_room(b: sizing.Bounds, k: float, radius: np.ndarray, boss: np.ndarray,
 
 
 @pytest.fixture(scope="module")
-def bounds() -> sizing.Bounds:
-    return sizing.bounds_of(F.real())
+def bounds() -> rows.Bounds:
+    return rows.bounds_of(F.real())
 
 
-def _inputs(b: sizing.Bounds, size: float = F.SIZES["m4"], cap: float = 12.0):
+def _inputs(b: rows.Bounds, size: float = F.SIZES["m4"], cap: float = 12.0):
     """A programme whose rows bind: M4 joints at ``size``, bars up to ``cap`` mm."""
     k = size / b.extent
     rmin = sizing.min_radii(b, k, GENERIC, "m4", 1)
     bmin = sizing.min_boss(GENERIC, "m4", ROD)
-    env = sizing.envelopes(F.plan("m4").layouts)
+    env = rows.envelopes(F.plan("m4").layouts)
     gaps = stiffness.required_gaps(np.full(6, 0.2))
     return k, rmin, cap, bmin, env, gaps
 
 
 def test_every_row_holds_for_the_returned_radii(bounds):
     k, rmin, cap, bmin, env, gaps = _inputs(bounds)
-    r, boss = sizing.radii(bounds, k, rmin, cap, bmin, env, gaps)
+    r, boss = rows.radii(bounds, k, rmin, cap, bmin, env, gaps)
     assert np.all(r >= rmin - 1e-9) and np.all(r <= cap + 1e-9) and np.all(boss >= bmin - 1e-9)
     # each boss holds a fillet around both bars it joins
-    assert np.all(boss >= sizing.BOSS_PER_BAR * np.maximum(r, np.roll(r, -1)) - 1e-9)
+    assert np.all(boss >= rows.BOSS_PER_BAR * np.maximum(r, np.roll(r, -1)) - 1e-9)
     # the certified rows, written out here: r_a + r_b + gap <= k L - x_a - x_b
     for (e1, e2, la, lb), low in zip(bounds.rows, bounds.lower, strict=True):
         for r1, x1 in capsules(int(e1), r, boss, env):
@@ -89,20 +89,20 @@ def test_every_row_holds_for_the_returned_radii(bounds):
     # the thinnest bar is the largest the rows allow: a hair thicker is infeasible
     t = float(r.min())
     assert t < cap  # the rows bind here, not the cap
-    assert sizing.radii(bounds, k, np.maximum(rmin, t * 1.001), cap, bmin, env, gaps) is None
+    assert rows.radii(bounds, k, np.maximum(rmin, t * 1.001), cap, bmin, env, gaps) is None
     assert len(np.unique(np.round(r, 6))) > 1  # and the others grow past it where they can
 
 
 def test_infeasible_programmes_return_none(bounds):
     k, rmin, cap, bmin, env, gaps = _inputs(bounds)
-    assert sizing.radii(bounds, k, rmin, cap, bmin, env, gaps + 100.0) is None
-    assert sizing.radii(bounds, 0.1 * k, rmin, cap, bmin, env, gaps) is None
+    assert rows.radii(bounds, k, rmin, cap, bmin, env, gaps + 100.0) is None
+    assert rows.radii(bounds, 0.1 * k, rmin, cap, bmin, env, gaps) is None
     # a metal piece alone reaching past a row's room: nothing to shrink
     big = env.copy()
     big[:, 1] = 1e3
-    assert sizing.radii(bounds, k, rmin, cap, bmin, big, gaps) is None
+    assert rows.radii(bounds, k, rmin, cap, bmin, big, gaps) is None
     # a floor above the cap
-    assert sizing.radii(bounds, k, np.full(6, cap + 1.0), cap, bmin, env, gaps) is None
+    assert rows.radii(bounds, k, np.full(6, cap + 1.0), cap, bmin, env, gaps) is None
 
 
 def test_plans_keep_their_required_gaps(bounds):
@@ -112,7 +112,7 @@ def test_plans_keep_their_required_gaps(bounds):
             pytest.approx(p.size_mm)
         gaps = stiffness.required_gaps(p.deflection.total)
         assert np.allclose(p.gaps, gaps)
-        room = worst_room(bounds, p.scale, p.radii, p.boss, sizing.envelopes(p.layouts), p.gaps)
+        room = worst_room(bounds, p.scale, p.radii, p.boss, rows.envelopes(p.layouts), p.gaps)
         assert room >= -1e-6, kind
 
 
@@ -134,7 +134,7 @@ def test_min_radii_and_caps(bounds):
         3.0 + 0.3 + 0.1 + 1.6 + joints.BOSS_ROOM_MM)
 
 
-def _lw(p: sizing.Plan, b: sizing.Bounds) -> np.ndarray:
+def _lw(p: sizing.Plan, b: rows.Bounds) -> np.ndarray:
     return b.bar_lengths * p.scale / (p.radii * SQ3)
 
 
@@ -185,7 +185,7 @@ def test_automatic_size_fits_the_bed():
     p = sizing.plan(r, GENERIC, F.PLA, "m3", ROD, fit=fit)
     assert fit(p) >= 1.0 and p.level == 0
     assert sizing.MIN_SIZE_MM <= p.size_mm <= bed.bed_scale(r.points, GENERIC) * \
-        sizing.bounds_of(r).extent + 1e-6
+        rows.bounds_of(r).extent + 1e-6
 
 
 # --- the bed -------------------------------------------------------------------------------

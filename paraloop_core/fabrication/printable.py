@@ -38,6 +38,7 @@ from paraloop_core.fabrication import (
     layout,
     parts,
     profiles,
+    rows,
     sizing,
     stiffness,
     thickness,
@@ -50,7 +51,10 @@ from paraloop_core.realization.certified import Realization
 Progress = Callable[[float, str], None]
 #: Most candidate realizations sized before the best so far is taken, and grounding rods tried
 #: (best first) until one leaves both its links flat on the bed.
-MAX_CANDIDATES = 12
+MAX_CANDIDATES = 16
+#: Sized candidates after which the choice is made even when none meets the aims (each more
+#: costs a realization and a sizing; the best of three is rarely beaten later).
+ENOUGH_SIZED = 3
 GROUND_TRIES = 4
 
 
@@ -185,7 +189,8 @@ def choose(candidates: Iterable[Candidate], opts: Options, progress: Progress | 
                      f"{plan.radii.min() * sizing.FLATS:.1f} mm wide or more"
                      + ("" if plan.aims_met else f" ({sizing.LEVELS[plan.level]})"))
         sized.append((cand, real, ee, plan))
-        if sum(c[3].aims_met for c in sized) >= (1 if opts.size_mm is not None else 2):
+        if sum(c[3].aims_met for c in sized) >= (1 if opts.size_mm is not None else 2) or \
+                len(sized) >= ENOUGH_SIZED:
             break  # two that meet the aims (the design's loop first): enough to choose from
     if not sized:
         raise FabricationError("no realization of this design can be printed with real "
@@ -345,20 +350,31 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
     ranked, tried = choose(candidates, opts, _stage(progress, 0.0, 0.25))
     if progress is not None:
         progress(0.25, "building the parts")
-    for n, (cand, real, ee, plan) in enumerate(ranked):
+    # the best candidate that builds and stands on a base; the best that builds if none does
+    built, error = [], None
+    for cand, real, ee, plan in ranked:
         try:
             asm, plan, ee_method = _fit_and_build(real, ee, plan, opts)
-            break
         except FabricationError as exc:  # a link cut through or pinched: the next one
-            if exc.reason not in ("falls-apart", "not-watertight") or n == len(ranked) - 1:
+            if exc.reason not in ("falls-apart", "not-watertight"):
                 raise
             tried.append(f"{cand.label}: not built ({exc})")
-    warnings: list[str] = []
-    b = None
-    if opts.ground:
-        if progress is not None:
-            progress(0.4, "grounding: rod and base plate")
-        asm, b, warnings = _ground(asm, opts)
+            error = exc
+            continue
+        warnings: list[str] = []
+        b = None
+        if opts.ground:
+            if progress is not None:
+                progress(0.4, f"grounding {cand.label}: rod and base plate")
+            asm, b, warnings = _ground(asm, opts)
+        built.append((cand, real, ee, plan, asm, ee_method, b, warnings))
+        if b is not None or not opts.ground:
+            break
+        tried.append(f"{cand.label}: no grounding rod clears its moving links")
+    if not built:
+        raise error
+    cand, real, ee, plan, asm, ee_method, b, warnings = next(
+        (x for x in built if x[6] is not None), built[0])
     ver = check.verify(asm, opts.samples, progress=_stage(progress, 0.45, 0.95))
     lifted = [i for i in range(6) if asm.slack[i] < 0]
     if lifted:
@@ -369,7 +385,7 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
     report = {
         "choice": {"realization": cand.label, "loop": cand.loop, "tried": tried,
                    "radius": real.radius, "separation": real.separation},
-        "sizing": sizing.to_dict(plan, opts.printer, sizing.bounds_of(real)),
+        "sizing": sizing.to_dict(plan, opts.printer, rows.bounds_of(real)),
         "joints": [joints.to_dict(j) for j in asm.joints],
         "verification": ver, "warnings": warnings + _level_warnings(plan),
         "print_flat_slack_mm": asm.slack.tolist()}

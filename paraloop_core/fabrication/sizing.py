@@ -1,20 +1,14 @@
 """Size and thickness of the parts: the strongest links the certificate allows.
 
-The realization proves, over the whole cycle, a lower bound ``L`` (design units) of the
-distance between the centre lines of every pair of segments of different links that must stay
-apart (``Realization.pair_lower``: bars ``S_iE_i`` and pins ``E_iS_{i+1}``) and of each pair of
-consecutive bars (``joint_lower``); two consecutive pins are fixed in the link between them, so
-their distance is the one at home. A link lies in a capsule of radius ``R_i`` (its hexagonal
-bar's corner radius) about its bar, and a joint's bosses and hardware in a capsule of radius
-``max(B_j, h_j)`` (boss ``B_j``, hardware ``h_j``) about its pin extended by ``x_j`` past the pin's
-ends (a point within ``x`` of a segment's end is within ``x`` of the segment). So at ``k`` mm per
-unit the parts keep the gap ``g`` if ``r_a + r_b + g <= k L - x_a - x_b`` for every row: one small
-linear programme in the twelve radii (:func:`radii`) gives the largest thinnest bar, then the
-largest sum, every bar at least :data:`WIDTH_MM` wide and at most :data:`LW_MAX` times as
-long, bosses :data:`BOSS_PER_BAR` times the bar they hold and wide enough for their axle
-(any joint may become the grounded joint on the rod). The gaps are
+The room between the links is the certificate's (:mod:`rows`: one capsule per bar, per
+joint's bosses and per joint's hardware, and a linear programme in the twelve radii that keeps
+a gap in every certified row). Here the programme's bounds are set: the largest thinnest bar,
+then the largest sum, every bar at least :data:`WIDTH_MM` wide and at most :data:`LW_MAX` times
+as long, bosses :data:`rows.BOSS_PER_BAR` times the bar they hold and wide enough for their
+axle (any joint may become the grounded joint on the rod). The gaps are
 :func:`stiffness.required_gaps` of the predicted deflections, so the LP is repeated until the
-radii, the joint layouts (``x_j``) and the deflections agree.
+radii, the joint layouts (how far bosses and hardware reach past the pins) and the
+deflections agree.
 
 :func:`plan` picks the size: the largest at which the predicted parts fit the printer's bed
 (or the caller's size) and the programme is feasible; the built parts are measured again
@@ -24,22 +18,20 @@ radii, the joint layouts (``x_j``) and the deflections agree.
 from __future__ import annotations
 
 import itertools
+from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy.optimize import linprog
 
 from paraloop_core.errors import FabricationError
 from paraloop_core.fabrication import bed, flat, joints, stiffness
 from paraloop_core.fabrication.profiles import Material, Printer, Rod
-from paraloop_core.linkage import loops
+from paraloop_core.fabrication.rows import BOSS_PER_BAR, Bounds, bounds_of, envelopes, radii
 
 #: Bars at least this wide across flats (mm): the floor, and the width aimed for.
 WIDTH_MM, WIDTH_AIM_MM = 6.0, 7.0
 #: Bar length per width across flats: the ceiling, and the ratio aimed for.
 LW_MAX, LW_AIM = 30.0, 25.0
-#: Boss radius per bar corner radius: room for a fillet of a quarter of the bar.
-BOSS_PER_BAR = 1.25
 #: Thickest bar (corner radius, mm) as a fraction of the size, within [lo, hi] mm: thicker
 #: only adds mass (and motor torque) to a desk model.
 BAR_CAP = (0.028, 4.5, 8.0)
@@ -68,46 +60,12 @@ LEVELS = ("aims", "floors", "least gap", "thin bars")
 MIN_SIZE_MM = 100.0
 #: Sizes (mm) tried below the bed's limit, as factors, when the programme is infeasible there.
 SHRINK = 0.9
+#: Shares of the room between a bar's floor and its cap that :func:`_radii_settle` allows,
+#: in turn, when thicker bars' bosses and hardware take the room they were given.
+CAP_SHARES = (0.5, 0.2, 0.0)
 #: Hex bars per corner radius: across flats (width) and the flat's distance from the axis.
 FLATS = np.sqrt(3.0)
 APOTHEM = np.sqrt(3.0) / 2.0
-
-
-@dataclass(frozen=True)
-class Bounds:
-    """A realization's certified bounds (design units): ``points`` ``(12, 3)``, ``rows``
-    ``(N, 4)`` (edge, edge, link, link) with ``lower`` ``(N,)``, consecutive bars
-    ``joint_lower`` ``(6,)``, consecutive pins at home ``pin_pin`` ``(6,)`` (joint j with j+1),
-    ``extent`` (longest side of the polyline's box), the joint ``axes`` ``(6, 6)``."""
-
-    points: np.ndarray
-    rows: np.ndarray
-    lower: np.ndarray
-    joint_lower: np.ndarray
-    pin_pin: np.ndarray
-    extent: float
-    axes: np.ndarray
-
-    @property
-    def bar_lengths(self) -> np.ndarray:
-        return np.linalg.norm(self.points[1::2] - self.points[0::2], axis=-1)
-
-
-def bounds_of(real) -> Bounds:
-    """:class:`Bounds` of a ``certified.Realization``."""
-    from paraloop_core.realization.clearance import segment_distance
-
-    pts = np.asarray(real.points, float)
-    low = np.asarray(real.pair_lower, float)
-    # consecutive bars i, i+1 (inf where a bar is not there: link 3 with an end-effector)
-    jl = np.full(6, np.inf)
-    jl[np.asarray(real.joint_pairs)[:, 2]] = np.asarray(real.joint_lower, float)
-    if not (np.all(np.isfinite(low)) and not np.any(np.isnan(jl))):
-        raise FabricationError("the realization has no proven pair bounds", "bad-parameters")
-    e, s = pts[1::2], np.roll(pts[0::2], -1, axis=0)  # pin j: E_j -> S_{j+1}
-    pp = segment_distance(e, s, np.roll(e, -1, axis=0), np.roll(s, -1, axis=0))
-    return Bounds(pts, np.asarray(real.pairs), low, jl, np.asarray(pp, float),
-                  float(np.max(np.ptp(pts, axis=0))), loops.factor_axes(real.joint_factors))
 
 
 @dataclass(frozen=True)
@@ -161,74 +119,6 @@ def min_boss(printer: Printer, kind: str, rod: Rod) -> float:
     return max(joints.min_boss_radius(kind, printer), joints.min_boss_radius("rod", printer, rod))
 
 
-def radii(b: Bounds, k: float, rmin: np.ndarray, rcap: float | np.ndarray, bmin: float,
-          env: np.ndarray, gaps: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
-    """Bar corner radii and boss radii ``(6,), (6,)`` (mm) at ``k`` mm per unit (module
-    docstring), or None when no radii meet every row; ``rmin`` ``(6,)``, ``rcap``, ``bmin``
-    the bounds, ``env`` ``(6, 2)`` each joint's :func:`joints.envelope` (how far its bosses
-    reach past the pin's ends; the largest radius plus reach of its metal pieces), ``gaps``
-    ``(6, 6)`` the gap each pair of links keeps (mm)."""
-    rows_a, rows_b = [], []
-
-    def shapes(e: int) -> list[tuple[int | None, float]]:
-        """Capsules of edge e as (radius variable or None, reach subtracted from the bound):
-        a bar's R; a pin's bosses (B, reach) and its metal pieces (constant, nothing)."""
-        if e % 2 == 0:
-            return [(e // 2, 0.0)]
-        j = e // 2
-        return [(6 + j, float(env[j, 0]))] + ([(None, float(env[j, 1]))] if env[j, 1] > 0
-                                              else [])
-
-    def add(e1: list, e2: list, budget: float) -> None:
-        for (v1, x1), (v2, x2) in itertools.product(e1, e2):
-            a = np.zeros(12)
-            for v in (v1, v2):
-                if v is not None:
-                    a[v] += 1.0
-            rows_a.append(a)
-            rows_b.append(budget - x1 - x2)
-
-    for (e1, e2, la, lb), low in zip(b.rows, b.lower, strict=True):
-        add(shapes(int(e1)), shapes(int(e2)), k * low - gaps[la, lb])
-    for i in range(6):  # consecutive bars i, i+1 and consecutive pins i, i+1
-        j = (i + 1) % 6
-        if np.isfinite(b.joint_lower[i]):
-            add(shapes(2 * i), shapes(2 * j), k * b.joint_lower[i] - gaps[i, j])
-        add(shapes(2 * i + 1), shapes(2 * j + 1), k * b.pin_pin[i] - gaps[i, (i + 2) % 6])
-    for j in range(6):  # bosses hold a fillet around both bars they join
-        for link in (j, (j + 1) % 6):
-            a = np.zeros(12)
-            a[link], a[6 + j] = BOSS_PER_BAR, -1.0
-            rows_a.append(a)
-            rows_b.append(0.0)
-    a_ub, b_ub = np.array(rows_a), np.array(rows_b)
-    if np.any((np.abs(a_ub).sum(axis=1) == 0) & (b_ub < 0)):
-        return None  # metal pieces alone are too close for a row
-    top = np.broadcast_to(np.asarray(rcap, float), (6,))
-    bounds = [(float(rmin[i]), float(top[i])) for i in range(6)] + [(bmin, None)] * 6
-    # 1) the largest thinnest bar t (variable 12): t - R_i <= 0
-    a1 = np.hstack([a_ub, np.zeros((len(a_ub), 1))])
-    floor = np.zeros((6, 13))
-    floor[np.arange(6), np.arange(6)], floor[:, 12] = -1.0, 1.0
-    res = linprog(np.r_[np.zeros(12), -1.0], A_ub=np.vstack([a1, floor]),
-                  b_ub=np.r_[b_ub, np.zeros(6)], bounds=[*bounds, (None, None)],
-                  method="highs")
-    if not res.success:
-        return None
-    t = res.x[12]
-    # 2) the largest bars with every bar >= t, then the smallest bosses that hold them
-    bounds2 = [(max(lo, t * (1 - 1e-6)), hi) for lo, hi in bounds[:6]] + bounds[6:]
-    res = linprog(np.r_[-np.ones(6), 0.05 * np.ones(6)], A_ub=a_ub, b_ub=b_ub, bounds=bounds2,
-                  method="highs")
-    x = res.x if res.success else np.r_[np.full(6, t), res.x[6:] if res.x is not None else
-                                        np.full(6, bmin)]
-    # the solver's round-off must not overstep a row: shrink towards the floors
-    over = a_ub @ x - b_ub
-    if np.any(over > 1e-9):
-        return None if np.any(over > 1e-6) else (x[:6] * (1 - 1e-7), x[6:] * (1 - 1e-7))
-    return x[:6], x[6:]
-
-
 def _layouts(b: Bounds, k: float, r: np.ndarray, boss: np.ndarray, kind: str,
              printer: Printer, eps: float) -> tuple[joints.Joint, ...]:
     pts = b.points * k
@@ -241,14 +131,9 @@ def _layouts(b: Bounds, k: float, r: np.ndarray, boss: np.ndarray, kind: str,
     return tuple(out)
 
 
-def envelopes(layouts: tuple[joints.Joint, ...]) -> np.ndarray:
-    """:func:`joints.envelope` of each joint ``(6, 2)`` (mm)."""
-    return np.array([joints.envelope(j) for j in layouts])
-
-
 def at_scale(real, b: Bounds, k: float, printer: Printer, material: Material, kind: str,
-             rod: Rod, eps: float, matrix: np.ndarray, level: int = 0, rest: int | None = None
-             ) -> Plan | None:
+             rod: Rod, eps: float, matrix: np.ndarray, level: int = 0, rest: int | None = None,
+             shares: tuple[float, ...] = (1.0,)) -> Plan | None:
     """The :class:`Plan` at ``k`` mm per unit at a :data:`LEVELS` level, or None when no
     radii meet the rows there.
 
@@ -270,7 +155,7 @@ def at_scale(real, b: Bounds, k: float, printer: Printer, material: Material, ki
     if level >= 2:
         top = np.full(6, rcap)
         plan = _settle(real, b, k, printer, material, kind, eps, floor, top, bmin,
-                       np.full((6, 6), stiffness.MIN_GAP_MM), matrix, rest, level < 3)
+                       np.full((6, 6), stiffness.MIN_GAP_MM), matrix, rest, level < 3, shares)
         # the gaps required are those kept: the least gap (the warning says the deflections
         # may be larger); the verification and the rod's clearance check these
         return None if plan is None else replace(
@@ -290,7 +175,7 @@ def at_scale(real, b: Bounds, k: float, printer: Printer, material: Material, ki
             continue
         gaps = stiffness.required_gaps(np.full(6, delta)) * margin
         plan = _settle(real, b, k, printer, material, kind, eps, rmin, top, bmin, gaps, matrix,
-                       rest, True)
+                       rest, True, shares)
         if plan is not None:
             return replace(plan, level=level)
     return None
@@ -298,14 +183,15 @@ def at_scale(real, b: Bounds, k: float, printer: Printer, material: Material, ki
 
 def _settle(real, b: Bounds, k: float, printer: Printer, material: Material, kind: str,
             eps: float, rmin: np.ndarray, rcap: np.ndarray, bmin: float, gaps: np.ndarray,
-            matrix: np.ndarray, rest: int | None, lay_flat: bool) -> Plan | None:
+            matrix: np.ndarray, rest: int | None, lay_flat: bool,
+            shares: tuple[float, ...] = (1.0,)) -> Plan | None:
     """:func:`_radii_settle`; with ``lay_flat``, bars whose print flat would cut into a bore
     (:func:`flat_radii`) are then made that much thicker (up to :data:`FLAT_CAP_MM`) where
     the programme still holds and the heavier parts bend no more than ``gaps`` allows: all
     such bars at once, else one at a time; the others stay thinner (printed uncut, on
     support)."""
     plan = _radii_settle(real, b, k, printer, material, kind, eps, rmin, rcap, bmin, gaps,
-                         matrix, rest)
+                         matrix, rest, shares)
 
     def notches(p: Plan) -> np.ndarray:
         return np.array([j.notch for j in p.layouts])
@@ -315,7 +201,7 @@ def _settle(real, b: Bounds, k: float, printer: Printer, material: Material, kin
         # is notched deeper by the grown bosses (a notch can cut a thin bar through)
         lo = np.where(grow, np.maximum(rmin, need), rmin)
         p = _radii_settle(real, b, k, printer, material, kind, eps, lo, np.maximum(rcap, lo),
-                          bmin, gaps, matrix, rest)
+                          bmin, gaps, matrix, rest, shares)
         ok = p is not None and np.all(p.gaps <= gaps + 1e-9) and np.all(
             notches(p) <= notches(plan) + 1e-9)
         return (p, lo) if ok else (None, lo)
@@ -349,10 +235,28 @@ def flat_radii(b: Bounds, k: float, layouts: tuple[joints.Joint, ...], wall: flo
 
 
 def _radii_settle(real, b: Bounds, k: float, printer: Printer, material: Material, kind: str,
-            eps: float, rmin: np.ndarray, rcap: np.ndarray, bmin: float, gaps: np.ndarray,
-            matrix: np.ndarray, rest: int | None) -> Plan | None:
+                  eps: float, rmin: np.ndarray, rcap: np.ndarray, bmin: float, gaps: np.ndarray,
+                  matrix: np.ndarray, rest: int | None, shares: tuple[float, ...] = (1.0,)
+                  ) -> Plan | None:
     """Radii for fixed ``gaps``, repeated until the joint layouts they imply (how far the
-    bosses and hardware reach past the pins) are those the programme assumed."""
+    bosses and hardware reach past the pins) are those the programme assumed. Thicker bars
+    grow their bosses and with them the hardware's reach, which can take the room the bars
+    were given: then the bars' cap may be lowered towards their floor (``shares`` of the
+    room between them, :data:`CAP_SHARES` in :func:`plan`'s second pass) and the fixed point
+    tried again."""
+    cap = np.broadcast_to(np.asarray(rcap, float), (6,))
+    for share in shares:
+        top = rmin + share * np.maximum(cap - rmin, 0.0)
+        plan = _fixed_point(real, b, k, printer, material, kind, eps, rmin, top, bmin, gaps,
+                            matrix, rest)
+        if plan is not None:
+            return plan
+    return None
+
+
+def _fixed_point(real, b: Bounds, k: float, printer: Printer, material: Material, kind: str,
+                 eps: float, rmin: np.ndarray, rcap: np.ndarray, bmin: float,
+                 gaps: np.ndarray, matrix: np.ndarray, rest: int | None) -> Plan | None:
     r = rmin
     boss = np.maximum(bmin, BOSS_PER_BAR * np.maximum(r, np.roll(r, -1)))
     env = np.zeros((6, 2))
@@ -385,16 +289,22 @@ def plan(real, printer: Printer, material: Material, kind: str, rod: Rod, *,
     b = bounds_of(real)
     matrix = stiffness.torque_matrix(real)
     rest = stiffness.easiest_rest(real, matrix)
-    for level in range(len(LEVELS)):
+    if size_mm is None and not _any_size(real, b, printer, material, kind, rod, eps, matrix,
+                                         rest):
+        raise _no_room(b, printer, kind, None)
+    # each level first with the bars as thick as the rows allow at every size, then letting
+    # them give room to the bosses and hardware they would grow (:func:`_radii_settle`)
+    for level, shares in itertools.product(range(len(LEVELS)), ((1.0,), CAP_SHARES)):
         if size_mm is not None:
             p = at_scale(real, b, size_mm / b.extent, printer, material, kind, rod, eps, matrix,
-                         level, rest)
+                         level, rest, shares)
             if p is not None:
                 return p
             continue
         k = bed.bed_scale(b.points, printer)
         while k * b.extent >= MIN_SIZE_MM:
-            p = at_scale(real, b, k, printer, material, kind, rod, eps, matrix, level, rest)
+            p = at_scale(real, b, k, printer, material, kind, rod, eps, matrix, level, rest,
+                         shares)
             if p is not None:
                 grow = fit(p) if fit is not None else 1.0
                 if grow >= 1.0:
@@ -402,10 +312,34 @@ def plan(real, printer: Printer, material: Material, kind: str, rod: Rod, *,
                 k *= max(min(grow, 0.99), 0.5)
                 continue
             k *= SHRINK
+    raise _no_room(b, printer, kind, size_mm)
+
+
+def _sizes(b: Bounds, printer: Printer) -> Iterator[float]:
+    """Scales (mm per unit) of the loosest level's scan: the bed's down to :data:`MIN_SIZE_MM`
+    by :data:`SHRINK`."""
+    k = bed.bed_scale(b.points, printer)
+    while k * b.extent >= MIN_SIZE_MM:
+        yield k
+        k *= SHRINK
+
+
+def _any_size(real, b: Bounds, printer: Printer, material: Material, kind: str, rod: Rod,
+              eps: float, matrix: np.ndarray, rest: int | None) -> bool:
+    """Whether the loosest level (thin bars: least floors, least gaps) with every cap share
+    has radii at some size of :func:`_sizes`: every other level asks more at each size, so
+    when it has none, no level has (a quick, true refusal)."""
+    last = len(LEVELS) - 1
+    return any(at_scale(real, b, k, printer, material, kind, rod, eps, matrix, last, rest,
+                        (1.0, *CAP_SHARES)) is not None for k in _sizes(b, printer))
+
+
+def _no_room(b: Bounds, printer: Printer, kind: str, size_mm: float | None
+             ) -> FabricationError:
     where = f"at {size_mm:.0f} mm" if size_mm is not None else \
         f"at any size from {bed.bed_scale(b.points, printer) * b.extent:.0f} mm down to " \
         f"{MIN_SIZE_MM:g} mm"
-    raise FabricationError(
+    return FabricationError(
         f"{where} the joints' bosses and hardware ({kind}) and bars do not fit in the room "
         "this realization's certificate leaves between the links", "bad-parameters")
 

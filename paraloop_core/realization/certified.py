@@ -32,7 +32,8 @@ class Realization:
     ``points`` ``(12, 3)``: ``S_0, E_0, ..., S_5, E_5`` (S_i on ``A_{i-1}``, E_i on ``A_i``);
     edge e joins points e and e+1 (mod 12): bar ``S_iE_i`` of link i (e = 2i), pin ``E_iS_{i+1}``
     on ``A_i`` (e = 2i+1). ``radius`` rho and ``separation`` d in design units; ``length`` l of
-    the initial polyline; ``shifts`` ``(6,)`` tau in ``{-k, 0, k}`` (shift = tau l / p);
+    the initial polyline; ``shifts`` ``(6,)`` tau in ``{-k, 0, k}`` (shift = tau l / p; any
+    integers of at most k for a :mod:`roomy` one);
     ``offsets`` ``(6,)`` in ``{+1, -1, 0}``; ``thin_initial``/``thin`` ``(6, 3)`` the step-1 and
     step-3 polylines; ``pairs`` ``(42, 4)`` rows (edge 1, edge 2, fixed link, moving link);
     ``pair_distance`` ``(42,)`` exact minima over the cycle at ``pair_t`` (inf = home);

@@ -287,18 +287,21 @@ class Search:
         self.start()
         return v0, length, d, rho
 
-    def run_hint(self, shifts: np.ndarray, offsets: np.ndarray, *, p: float,
+    def run_hint(self, shifts: np.ndarray, offsets: np.ndarray | None, *, p: float,
                  rho: float | None, d: float | None, d_fraction: float, rho_fraction: float,
                  max_k: int, certify: bool = True) -> Any:
         """Warm start: the shift pattern ``shifts`` ``(6,)`` and ``offsets`` ``(6,)`` of a
         realization of a nearby loop (the previous drag step), tried alone on this loop and
         certified exactly like :meth:`run`'s answers (thin check, exact minima, sound bounds);
         the :meth:`result`, or None when they do not give a collision-free realization here.
-        Without ``certify`` the sound bounds are skipped and only the vertices ``(12, 3)``
-        (design units) are returned: a drag preview, never a certificate."""
+        ``offsets`` None: step 4 tries every offset sequence in the paper's order (as
+        :meth:`run` does for one thin polyline). Without ``certify`` the sound bounds are
+        skipped and only the vertices ``(12, 3)`` (design units) are returned: a drag
+        preview, never a certificate."""
         tau = np.asarray(shifts, int)
-        seqs = np.flatnonzero(np.all(OFFSET_WAYS[DIGITS] == np.asarray(offsets, int), axis=1))
-        if tau.shape != (6,) or len(seqs) != 1:
+        seqs = sequence_order(np.sign(tau)) if offsets is None else np.flatnonzero(
+            np.all(OFFSET_WAYS[DIGITS] == np.asarray(offsets, int), axis=1))
+        if tau.shape != (6,) or (offsets is not None and len(seqs) != 1):
             raise RealizationError("a warm start needs six shifts and six offsets in "
                                    "{-1, 0, 1}", "bad-parameters")
         v0, length, _, _ = self.setup(p=p, rho=rho, d=d, d_fraction=d_fraction,
@@ -310,12 +313,14 @@ class Search:
         if self.colliding(k, tau[None], polys)(0, 1)[0]:
             return None
         step = self.step4(polys[0])
-        seq, _ = step.run(seqs)
-        if not certify:
-            return None if seq is None else step.points(seq) * self.unit
-        proof = None if seq is None else self.verify(step, seq)
-        if proof is None:
-            return None
+        while True:  # the first sequence the sound check confirms, as in :meth:`run`
+            seq, _ = step.run(seqs)
+            if seq is None or not certify:
+                return None if seq is None else step.points(seq) * self.unit
+            proof = self.verify(step, seq)
+            if proof is not None:
+                break
+            seqs = seqs[np.flatnonzero(seqs == seq)[0] + 1:]
         stats = {"k": k, "collision_checks": 1, "steps_back": 0, "min_distance_computations": 1,
                  "offset_rank": 0, "collision_checks_sequential": 1,
                  "refuted_by_verification": 0, "work": self.work(1, 1), "warm_start": 1}

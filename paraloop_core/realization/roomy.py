@@ -1,0 +1,143 @@
+"""Roomy realizations for printing (beyond the paper): shifts chosen for room, not length.
+
+The paper's search (:mod:`realize`) takes the *shortest* collision-free polyline and then
+offsets and thickens it: right for thin bars, but a printed loop needs millimetres between its
+links at a size that fits a printer's bed, that is room *per extent* of the polyline. Many
+loops whose shortest polylines pass close to each other somewhere in the cycle have polylines
+with ten times the room a little further out along the axes.
+
+:func:`screen` draws shift vectors at random (seeded: the same loop always gets the same
+draws) at :data:`SCALES` of the initial polyline's length l and scores each thin polyline by
+its *sampled* clearance over the cycle per extent. The sampled minimum is an upper bound of
+the true one, so the score only orders the candidates; nothing is concluded from it.
+:func:`realize_roomy` then realizes the best ones exactly as the paper's search does its own:
+the exact thin check (step 3), step 4 over the offset sequences with exact minima, and the
+sound bounds of :mod:`verify` (:meth:`realize.Search.run_hint`): the certificate is the same.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from paraloop_core.errors import RealizationError
+from paraloop_core.realization.certified import Realization
+from paraloop_core.realization.clearance import min_distance_batch, segment_distance
+from paraloop_core.realization.collision import (
+    THIN_PAIRS,
+    colliding_polylines,
+    polyline_segments,
+)
+from paraloop_core.realization.offsetting import OFFSET_PAIRS, LoopMotions
+from paraloop_core.realization.realize import Search
+
+#: Shift ranges drawn, as shares of the initial polyline's length l (each axis's vertex moves
+#: uniformly within +- share l), and draws per range.
+SCALES = (0.1, 0.2, 0.4, 0.8)
+DRAWS = 192
+#: The best screened polylines given the exact thin check, and how many of the
+#: collision-free ones among them then get their clearance computed exactly (their order).
+CHECKED, EXACT = 48, 12
+#: Shift quantum ``l / FINE_P``: the draws as integer steps, like the paper's ``tau l / p``.
+FINE_P = 1000
+#: Bar radius of the search as a share of the thin polyline's sampled clearance (the offsets
+#: and thick bars take the rest); the printed parts are sized on the certified bounds anyway.
+RHO_SHARE = 0.3
+#: Rows of the nine thin pairs (bar i, bar j) among the 42 offset pairs.
+_THIN_ROWS = np.array([int(np.flatnonzero((OFFSET_PAIRS[:, 0] == 2 * i) &
+                                          (OFFSET_PAIRS[:, 1] == 2 * j))[0])
+                       for i, j in THIN_PAIRS])
+
+
+def sampled_clearance(lp: LoopMotions, polys: np.ndarray) -> np.ndarray:
+    """Least distance ``(C,)`` between non-adjacent segments of thin polylines ``(C, 6, 3)``
+    at the sampled poses of ``lp`` (an upper bound of the true minimum over the cycle)."""
+    i = np.array([a for a, _ in THIN_PAIRS])
+    j = np.array([b for _, b in THIN_PAIRS])
+    prev = np.roll(polys, 1, axis=1)
+    rot, trans = lp.rot[_THIN_ROWS], lp.trans[_THIN_ROWS]  # (9, T, 3, 3), (9, T, 3)
+    b0 = np.einsum("ptab,cpb->cpta", rot, prev[:, j]) + trans  # (C, 9, T, 3)
+    b1 = np.einsum("ptab,cpb->cpta", rot, polys[:, j]) + trans
+    dist = segment_distance(prev[:, i, None], polys[:, i, None], b0, b1)  # (C, 9, T)
+    return dist.min(axis=(1, 2))
+
+
+def exact_clearance(lp: LoopMotions, polys: np.ndarray) -> np.ndarray:
+    """Exact least distance ``(C,)`` between non-adjacent segments of thin polylines
+    ``(C, 6, 3)`` over the whole cycle (0 where two meet: the polyline collides)."""
+    segs = polyline_segments(polys)
+    out = np.full(len(polys), np.inf)
+    if len(polys) == 0:
+        return out
+    for degree in sorted({md.degree for md, _ in lp.thin}):
+        group = [k for k in range(len(THIN_PAIRS)) if lp.thin[k][0].degree == degree]
+        cand = np.repeat(np.arange(len(polys)), len(group))
+        pairs = np.tile(group, len(polys))
+        first = np.array([THIN_PAIRS[k][0] for k in pairs])
+        second = np.array([THIN_PAIRS[k][1] for k in pairs])
+        index = np.array([lp.thin[k][1] for k in pairs])
+        dist, _ = min_distance_batch(lp.thin[group[0]][0], index, segs[cand, first],
+                                     segs[cand, second])
+        out = np.minimum(out, dist.reshape(len(polys), len(group)).min(axis=1))
+    return out
+
+
+def _draws(search: Search, lp: LoopMotions, seed: int
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The drawn integer shifts ``(C, 6)``, thin polylines ``(C, 6, 3)`` and their sampled
+    clearance per extent ``(C,)``."""
+    v0, length = search.initial()
+    rng = np.random.default_rng(seed)
+    draws = np.concatenate([rng.uniform(-s, s, (DRAWS, 6)) for s in SCALES])
+    tau = np.rint(draws * FINE_P).astype(int)
+    for i in search.fixed or {}:
+        tau[:, i] = 0
+    polys = v0 + (tau * length / FINE_P)[..., None] * lp.u
+    return tau, polys, sampled_clearance(lp, polys) / np.ptp(polys, axis=1).max(axis=1)
+
+
+def promise(joint_factors: np.ndarray, fixed: dict[int, float] | None, in_unit: float,
+            seed: int = 0) -> float:
+    """The best sampled clearance per extent among the draws of a loop ``(6, 8)``: cheap, an
+    upper bound of what :func:`screen` finds, to order loops before screening them."""
+    search = Search(joint_factors, fixed, in_unit)
+    return float(_draws(search, LoopMotions(search.jf), seed)[2].max())
+
+
+def screen(search: Search, lp: LoopMotions, seed: int = 0
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Up to :data:`EXACT` drawn collision-free thin polylines of the loop of ``search``
+    (motions ``lp``), best first: integer shifts ``(C, 6)`` (steps of ``l / FINE_P``),
+    vertices ``(C, 6, 3)`` and scores ``(C,)``: exact clearance per extent. The draws are
+    ranked by their sampled clearance (cheap), the :data:`CHECKED` best get the exact thin
+    check, the first :data:`EXACT` free ones their exact clearance. Held vertices (the
+    design's ``fixed``) are not shifted."""
+    tau, polys, sampled = _draws(search, lp, seed)
+    extent = np.ptp(polys, axis=1).max(axis=1)
+    keep = np.argsort(-sampled, kind="stable")[:CHECKED]
+    keep = keep[~colliding_polylines(lp.thin, polys[keep])][:EXACT]
+    score = exact_clearance(lp, polys[keep]) / extent[keep]
+    order = keep[np.argsort(-score, kind="stable")]
+    return tau[order], polys[order], np.sort(score)[::-1]
+
+
+def realize_roomy(joint_factors: np.ndarray, fixed: dict[int, float] | None, in_unit: float,
+                  *, pin: float, tries: int = 4, seed: int = 0) -> Realization:
+    """A certified realization (:class:`Realization`, as :func:`realize.realize`'s) of the
+    loop ``joint_factors`` ``(6, 8)`` on one of the ``tries`` best screened polylines, with
+    joint offsets ``d = pin x`` the polyline's extent; raises :class:`RealizationError`
+    (``cap-reached``) when none of them is certified."""
+    search = Search(joint_factors, fixed, in_unit)
+    tau, polys, score = screen(search, LoopMotions(search.jf), seed)
+    for k in range(min(tries, len(tau))):
+        if not score[k] > 0:
+            break
+        extent = float(np.ptp(polys[k], axis=0).max())
+        d = pin * extent
+        rho = min(RHO_SHARE * score[k] * extent, d / 2)
+        real = search.run_hint(tau[k], None, p=FINE_P, rho=rho * search.unit,
+                               d=d * search.unit, d_fraction=0.0, rho_fraction=0.0,
+                               max_k=int(np.abs(tau[k]).max()) or 1)
+        if real is not None:
+            return real
+    raise RealizationError(f"none of the {tries} roomiest polylines drawn for this loop is "
+                           "collision-free with its offsets and bars", "cap-reached")

@@ -1,0 +1,83 @@
+"""Roomy realizations for printing (``paraloop_core/realization/roomy.py``).
+
+The screen only orders candidates; the certificate is the paper search's. So: the exact
+clearance never exceeds the sampled one, held vertices stay put, a roomy realization's
+certificate survives the independent dense referee, and it leaves far more room per extent
+than the paper's shortest polyline on designs whose shortest polylines pass close.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from independent.dense_check import check_result
+from independent.generic_designs import random_design
+
+import paraloop_core as pl
+from paraloop_core import printed
+from paraloop_core.fabrication import printable
+from paraloop_core.realization import realize, roomy
+from paraloop_core.realization.offsetting import LoopMotions
+
+
+@pytest.fixture(scope="module")
+def close_design() -> pl.Solution:
+    """A generic design whose own realization leaves little room (seed 62014: the paper's
+    thin polylines of its loop pass within 1.5 % of the extent)."""
+    return pl.solve(pl.design_from_dict(random_design(62014, 1.0)))
+
+
+def test_screen_orders_by_exact_clearance_below_the_samples(close_design):
+    jf, unit = close_design.search_factors(1)
+    search = realize.Search(jf, {2: 0.0}, unit)
+    lp = LoopMotions(search.jf)
+    tau, polys, score = roomy.screen(search, lp)
+    assert 0 < len(tau) <= roomy.EXACT and np.all(np.diff(score) <= 0) and np.all(score > 0)
+    assert np.all(tau[:, 2] == 0)  # the held vertex is not shifted
+    exact = roomy.exact_clearance(lp, polys)
+    sampled = roomy.sampled_clearance(lp, polys)
+    assert np.all(exact <= sampled * (1 + 1e-9) + 1e-12)  # samples bound the minimum above
+    extent = np.ptp(polys, axis=1).max(axis=1)
+    assert np.allclose(exact / extent, score, rtol=1e-9, atol=1e-12)
+
+
+def test_roomy_certificates_survive_the_referee_and_make_it_printable(close_design):
+    """Every roomy realization the export would try (loops by promise) is certified (the
+    dense referee agrees with every pair) until one sizes for print with real joints, which
+    the design's own realization does not."""
+    sol = close_design
+    with pytest.raises(pl.FabricationError, match="do not fit in the room"):
+        printable._plan(sol.realization, printable.Options())
+    sized = None
+    for loop in sorted(range(len(sol.loops)), key=lambda i: -roomy.promise(*_factors(sol, i))):
+        try:
+            roomy_sol = printed.roomy_variant(sol, loop, printed.ROOMY_PIN)
+        except pl.RealizationError:
+            continue
+        rep = check_result(pl.result_to_dict(roomy_sol))
+        assert rep["status"] == "checked" and rep["disagreements"] == [], loop
+        try:
+            sized = printable._plan(roomy_sol.realization, printable.Options())
+            break
+        except pl.FabricationError:
+            continue
+    assert sized is not None and sized.radii.min() * np.sqrt(3) >= 6.0
+
+
+def test_run_hint_over_all_offsets_finds_the_search_answer():
+    """``run_hint(shifts, None)`` certifies what :meth:`Search.run` found for those shifts."""
+    sol = pl.solve(pl.load_design("assets/designs/tv8.json"))
+    real = sol.realization
+    jf, unit = sol.search_factors(sol.design.loop)
+    rs = sol.design.realization
+    again = realize.Search(jf, dict(rs.fixed), unit).run_hint(
+        real.shifts, None, p=rs.p, rho=real.radius, d=real.separation, d_fraction=0.0,
+        rho_fraction=0.0, max_k=rs.max_k)
+    assert again is not None
+    assert np.array_equal(again.offsets, real.offsets)
+    assert np.allclose(again.points, real.points, rtol=1e-9, atol=1e-12 * real.length)
+
+
+def _factors(sol: pl.Solution, loop: int) -> tuple:
+    jf, unit = sol.search_factors(loop)
+    return jf, dict(sol.design.realization.fixed), unit
