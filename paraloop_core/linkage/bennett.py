@@ -81,20 +81,47 @@ def singularity_curve(joint_factors: np.ndarray, t: np.ndarray,
     return np.linalg.det(gram[..., _THREE[:, :, None], _THREE[:, None, :]]).sum(axis=-1)
 
 
-def singularity_min(joint_factors: np.ndarray, samples: int = 256,
-                    length: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
-    """``(min S, t at the min)`` ``(...)`` over ``2 samples + 1`` parameters of the cycle: home
-    and, per norm factor ``(t - h0)^2 + r^2`` of the loop's quadratic, the t where its rotation
-    angle is uniform (:func:`poly.cycle_parameters`). A sampled minimum, not refined: a dip
-    narrower than the spacing can be missed."""
+def singularity_min(joint_factors: np.ndarray, samples: int = 64, levels: int = 6,
+                    basins: int = 8, length: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """``(min S, t at the min)`` ``(...)`` over the cycle of loops ``(..., 4, 8)``: home and,
+    per norm factor ``(t - h0)^2 + r^2`` of the loop's quadratic, the ``samples`` t where its
+    rotation angle is uniform (:func:`poly.cycle_parameters`); the ``basins`` lowest sampled
+    local minima are refined by ``levels`` zoom levels of 9 points in ``u``
+    (:func:`poly.param_to_t`) from their neighbouring samples, shrinking 4x per level. A basin
+    narrower than the sample spacing (no sampled local minimum) can be missed."""
     jf = _check(joint_factors)
-    if not (isinstance(samples, int) and samples >= 4):
-        raise ValueError(f"samples must be an integer >= 4, got {samples!r}")
+    if not all(isinstance(v, int) for v in (samples, levels, basins)) or samples < 4 \
+            or levels < 0 or basins < 1:
+        raise ValueError("samples (>= 4), levels (>= 0) and basins (>= 1) must be integers, "
+                         f"got {samples!r}, {levels!r}, {basins!r}")
     flat = jf.reshape(-1, 4, 8)
-    r = np.sqrt((flat[:, :2, 1:4] ** 2).sum(-1))
-    t = poly.cycle_parameters(flat[:, :2, 0], r, samples)  # (L, 2 samples)
-    t = np.concatenate([np.full((len(flat), 1), np.inf), t], axis=-1)
-    s = np.array([singularity_curve(f, tf, length) for f, tf in zip(flat, t, strict=True)])
-    k = np.argmin(s, axis=-1)
-    rows = np.arange(len(flat))
-    return s[rows, k].reshape(jf.shape[:-2]), t[rows, k].reshape(jf.shape[:-2])
+    best = np.array([_min_one(f, samples, levels, basins, length) for f in flat])  # (L, 2)
+    return (best[:, 1].reshape(jf.shape[:-2]),
+            poly.param_to_t(best[:, 0]).reshape(jf.shape[:-2]))
+
+
+def _min_one(jf: np.ndarray, samples: int, levels: int, basins: int, length: float
+             ) -> tuple[float, float]:
+    """``(u, S)`` of :func:`singularity_min` for one loop ``(4, 8)``."""
+    r = np.sqrt((jf[:2, 1:4] ** 2).sum(-1))
+    t = poly.cycle_parameters(jf[:2, 0], r, samples)  # sorted and finite: u in (0, 1) sorted
+    u = np.concatenate([[0.0], poly.t_to_param(t)])  # u = 0: home, also u = 1
+    vals = singularity_curve(jf, poly.param_to_t(u), length)
+    ring = np.concatenate([vals[-1:], vals, vals[:1]])  # periodic neighbours
+    local = np.flatnonzero((vals <= ring[:-2]) & (vals <= ring[2:]))
+    k = local[np.argsort(vals[local])[:basins]]  # (B,), at least the global sampled minimum
+    ring_u = np.concatenate([u[-1:] - 1.0, u, [1.0]])
+    lo, hi = ring_u[k], ring_u[k + 2]  # the neighbouring samples
+    best_u, best_s = u[k], vals[k]
+    for _ in range(levels):
+        grid = np.linspace(lo, hi, 9, axis=-1)  # (B, 9)
+        gv = singularity_curve(jf, poly.param_to_t(grid.ravel() % 1.0), length).reshape(
+            grid.shape)
+        i = np.argmin(gv, axis=-1)
+        v = gv[np.arange(len(k)), i]
+        best_u = np.where(v < best_s, grid[np.arange(len(k)), i], best_u)
+        best_s = np.minimum(v, best_s)
+        step = (hi - lo) / 8
+        lo, hi = best_u - step, best_u + step
+    j = int(np.argmin(best_s))
+    return float(best_u[j] % 1.0), float(best_s[j])
