@@ -243,3 +243,14 @@ def test_bennett_example_is_valid_json_schema():
 
     schema = json.loads(Path(dm.__file__).with_name("design.schema.json").read_text())
     jsonschema.validate(dm.design_to_dict(dm.design_from_dict(random_bennett_design(5))), schema)
+
+
+def test_studio_refuses_bennett_designs_with_one_message():
+    """The studio's panels are written for 6R loops: a Bennett design is refused on load (one
+    DesignFileError naming ``linkage``), never a crash in a panel."""
+    from app.files import studio_design
+
+    with pytest.raises(DesignFileError, match="^linkage: the studio does not show Bennett"):
+        studio_design(dm.design_from_dict(random_bennett_design(2)))
+    four = dm.load_design(Path(dm.__file__).parents[1] / "assets" / "designs" / "tv8.json")
+    assert studio_design(four) is four
