@@ -254,3 +254,36 @@ def test_studio_refuses_bennett_designs_with_one_message():
         studio_design(dm.design_from_dict(random_bennett_design(2)))
     four = dm.load_design(Path(dm.__file__).parents[1] / "assets" / "designs" / "tv8.json")
     assert studio_design(four) is four
+
+
+def test_known_answer_paper_flip():
+    """MATH section 4's exact flip: C = (t - i)(t - 2j - eps i) through S_0 = 1 (t = inf), C(0),
+    C(1) is interpolated back, and its factorizations are exactly (i, 2j + eps i) and
+    (8/5 i + 6/5 j + eps (9/25 i - 12/25 j), -3/5 i + 4/5 j + eps (16/25 i + 12/25 j))."""
+    e = np.eye(8)
+    h1, h2 = e[1], 2 * e[2] + e[5]
+    k1 = np.array([0, 8 / 5, 6 / 5, 0, 0, 9 / 25, -12 / 25, 0])
+    k2 = np.array([0, -3 / 5, 4 / 5, 0, 0, 16 / 25, 12 / 25, 0])
+    quad = dq8.from_factors(np.stack([h1, h2]))
+    poses = [e[0], *(dq.normalize(dq8.poly_at(quad, np.array([t]), np.ones(1))[0])
+                     for t in (0.0, 1.0))]
+    sol = pipeline.solve(dm.design_from_dict(_three(poses)), realize=False)
+    assert np.allclose(sol.monic, quad, atol=1e-12)
+    assert np.allclose(sol.factorizations.factors, [[h1, h2], [k1, k2]], atol=1e-12)
+    assert np.allclose(sol.loop.joint_factors, [h1, h2, k2, k1], atol=1e-12)
+    assert sol.pose_parameters[1:].tolist() == [0.0, 1.0]
+
+
+def test_three_poses_on_a_motion_with_a_translation_are_refused():
+    """Poses of ``(t - h)(t - eps d)`` (a rotation then a translation): their quadratic is that
+    motion, whose norm has the real root 0, so it has no Bennett factorization."""
+    from paraloop_core.errors import NonGenericMotionError
+
+    h = np.array([0.3, 0.2, 1.0, -0.5, 0.0, 0.4, 0.1, 0.36])
+    h[5:] -= (h[1:4] @ h[5:]) / (h[1:4] @ h[1:4]) * h[1:4]
+    quad = dq8.from_factors(np.stack([h, [0, 0, 0, 0, 0, 0.7, -0.2, 0.5]]))
+    poses = [np.eye(8)[0], *(dq.normalize(dq8.poly_at(quad, np.array([t]), np.ones(1))[0])
+                             for t in (0.5, 2.0))]
+    with pytest.raises(NonGenericMotionError, match="real root") as info:
+        pipeline.solve(dm.design_from_dict(_three(poses)), realize=False)
+    assert info.value.reason == "real-root"
