@@ -40,10 +40,10 @@ class Pose:
 
 @dataclass(frozen=True)
 class MotionSettings:
-    """``method``: 'four-pose' (exactly 4 poses), 'three-pose' (exactly 3: the Bennett 4R) or 'fit'
-    (>= 5); ``family`` 0|1; ``mu`` the family
-    parameter (None = infinity); ``criterion`` (if set, mu is chosen by :func:`selection.best_mu`);
-    ``targets`` (2, 3) world points for the axis criteria; ``extra_poses`` for 'extra-poses'."""
+    """``method``: 'four-pose' (exactly 4 poses), 'three-pose' (exactly 3: the Bennett 4R) or
+    'fit' (>= 5); ``family`` 0|1; ``mu`` the family parameter (None = infinity); ``criterion``
+    (if set, mu is chosen by :func:`selection.best_mu`); ``targets`` (2, 3) world points for
+    the axis criteria; ``extra_poses`` for 'extra-poses'."""
 
     method: str = "four-pose"
     family: int = 0
@@ -297,7 +297,10 @@ def _linkage(d: dict, n_poses: int) -> tuple[MotionSettings, int]:
         wanted = '"three-pose"' if linkage == "bennett" else '"four-pose" or "fit"'
         raise DesignFileError("motion.method", f"linkage {shown(linkage)} is made by method "
                               f"{wanted}, got {shown(motion.method)}")
-    loop = chk.integer(d.get("loop", 0), "loop", 0, 0 if three else 8)
+    loop = chk.integer(d.get("loop", 0), "loop", 0, 8)
+    if three and loop != 0:
+        raise DesignFileError("loop", f"a Bennett linkage (three poses) has one loop: 0, got "
+                              f"{loop}")
     if three and motion.criterion is not None:
         raise DesignFileError("motion.criterion", "a Bennett linkage (three poses) has one "
                               f"motion: no mu to choose, got {shown(motion.criterion)}")
