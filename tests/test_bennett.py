@@ -287,3 +287,20 @@ def test_three_poses_on_a_motion_with_a_translation_are_refused():
     with pytest.raises(NonGenericMotionError, match="real root") as info:
         pipeline.solve(dm.design_from_dict(_three(poses)), realize=False)
     assert info.value.reason == "real-root"
+
+
+def test_near_real_norm_root_refused_without_warnings():
+    """A pose turned by 2e-8 rad and moved (found by fuzzing three-pose designs): the norm root
+    sits on the real line within float64, refused as ``real-root``, no RuntimeWarning."""
+    import warnings
+
+    from paraloop_core.errors import NonGenericMotionError
+
+    data = {"poses": [{"position": [0.0, 0.0, 0.0], "wxyz": [1.0, 0.0, 0.0, 0.0]},
+                      {"position": [-1.0, 0.0, 1.0], "wxyz": [0.0, 1.0, 0.0, 0.0]},
+                      {"position": [-1.0, 0.0, 0.0], "wxyz": [115549969.0, 1.0, 1.0, 0.0]}]}
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        with pytest.raises(NonGenericMotionError) as info:
+            pipeline.solve(dm.design_from_dict(data))
+    assert info.value.reason == "real-root"

@@ -137,7 +137,8 @@ def _conditioned_roots(cs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     if n > 1:
         i, j = _pairs(n)
         yy = np.maximum(y[..., i] * y[..., j], 1e-300)
-        sep = np.abs(z[..., i] - z[..., j]) ** 2 / (2.0 * yy)
+        with np.errstate(over="ignore"):  # inf: a root on the real line (a three-pose fuzz case)
+            sep = np.abs(z[..., i] - z[..., j]) ** 2 / (2.0 * yy)
         code = np.where(np.sqrt(sep.min(axis=-1) / 2.0) <= TOL.repeated, 2, code)
         real |= sep.max(axis=-1) >= TOL.real_separation
     return z, np.where(real, 1, code)
