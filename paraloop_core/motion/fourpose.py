@@ -68,7 +68,10 @@ def _check_poses(poses: np.ndarray, count: int) -> np.ndarray:
 
 
 def polar(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Polar form of the Study quadric ``B(x, y) = x_P . y_D + x_D . y_P`` (broadcasting)."""
+    """Polar form of the Study quadric ``B(x, y) = x_P . y_D + x_D . y_P`` of dual quaternions
+    ``(..., 8)`` (broadcasting)."""
+    if np.shape(x)[-1:] != (8,) or np.shape(y)[-1:] != (8,):
+        raise ValueError(f"dual quaternions (..., 8) needed, got {np.shape(x)}, {np.shape(y)}")
     return (x[..., :4] * y[..., 4:] + x[..., 4:] * y[..., :4]).sum(axis=-1)
 
 

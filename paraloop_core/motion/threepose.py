@@ -36,9 +36,10 @@ def three_pose_motion(poses: np.ndarray) -> np.ndarray:
     ``(3, 8)`` (unit DQs): ``C(inf) = 1``, ``C(0) ∝ S_0^-1 S_1``, ``C(1) ∝ S_0^-1 S_2``
     (:data:`POSE_PARAMETERS`); the world motion is ``S_0 C(t)`` (:func:`fourpose.world_motion`).
 
-    Raises :class:`InterpolationError`: ``coincident``, ``rank`` (three rotations about one
-    axis), ``zero-pitch`` (a pose reached from ``S_0``, or ``S_2`` from ``S_1``, by a rotation
-    without pitch or a pure translation: no Bennett motion); ValueError for malformed input.
+    Raises :class:`InterpolationError`: ``coincident``, ``rank`` (the poses span less than a
+    plane: distinct poses only do so when one is reached by a zero-pitch turn), ``zero-pitch``
+    (a pose reached from ``S_0``, or ``S_2`` from ``S_1``, by a rotation without pitch or a
+    pure translation: no Bennett motion); ValueError for malformed input.
     """
     _, rel, _ = relative_poses(poses, 3)
     move = dq.mul(dq.conj(rel[1]), rel[2])  # S_1 -> S_2; its dual scalar part is B(p_1, p_2)
