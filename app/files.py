@@ -15,9 +15,19 @@ from app.state import StudioState, autosave_path_for, portable_mesh, uploaded_me
 from app.worker import FRAME, FULL
 from paraloop_core import design as design_mod
 from paraloop_core import pipeline
-from paraloop_core.errors import ParaloopError
+from paraloop_core.errors import DesignFileError, ParaloopError
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "assets" / "designs"
+
+
+def studio_design(design: design_mod.Design) -> design_mod.Design:
+    """``design`` when the studio can show it; a Bennett design (three poses) is refused with
+    DesignFileError: its panels, drawing and realization are written for 6R loops
+    (``paraloop solve`` gives its motion, factorizations and loop axes)."""
+    if design.linkage == "bennett":
+        raise DesignFileError("linkage", "the studio does not show Bennett linkages (three "
+                              "poses) yet; solve the design with 'paraloop solve'")
+    return design
 
 
 class FileTransfers:
@@ -77,9 +87,9 @@ class FileTransfers:
         upload = event.target.value
         name = slug(Path(upload.name).stem)[:60] or "design"
         try:
-            design = design_mod.load_design_bytes(
+            design = studio_design(design_mod.load_design_bytes(
                 upload.content, base_dir=self.state.design.base_dir or str(EXAMPLES),
-                mesh_dirs=(str(uploaded_meshes_dir()),))
+                mesh_dirs=(str(uploaded_meshes_dir()),)))
         except ParaloopError as exc:
             self._refuse(upload.name, str(exc))
             return

@@ -24,7 +24,7 @@ from typing import Any
 import viser
 
 from app import camera
-from app.files import EXAMPLES, FileTransfers
+from app.files import EXAMPLES, FileTransfers, studio_design
 from app.jobs import Cancelled, Jobs
 from app.notices import Notices
 from app.panels.design import Panels, writing_back
@@ -366,7 +366,7 @@ def run_studio(design_path: str | Path | None, host: str = "127.0.0.1", port: in
     """Serve the studio until SIGINT/SIGTERM; prints the URL."""
     opened = Path(design_path) if design_path is not None else None
     path = opened or default_design_path()
-    design = design_mod.load_design(path, (str(uploaded_meshes_dir()),))
+    design = studio_design(design_mod.load_design(path, (str(uploaded_meshes_dir()),)))
     server = viser.ViserServer(host=host, port=port, verbose=False)
     autosave = autosave_path_for(opened, design.name)
     try:

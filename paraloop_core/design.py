@@ -23,7 +23,10 @@ from paraloop_core.tolerance import TOL
 
 FORMAT = "paraloop-design"
 VERSION = 1
-METHODS = ("four-pose", "fit")
+METHODS = ("four-pose", "three-pose", "fit")
+#: The linkage a design makes: the paradoxical 6R loops of a cubic (methods 'four-pose' and
+#: 'fit') or the Bennett 4R of the quadratic through three poses (method 'three-pose').
+LINKAGES = ("6R", "bennett")
 CRITERIA = ("base-axes", "end-axes", "length", "extra-poses", "smooth-drive")
 
 
@@ -37,9 +40,10 @@ class Pose:
 
 @dataclass(frozen=True)
 class MotionSettings:
-    """``method``: 'four-pose' (exactly 4 poses) or 'fit' (>= 5); ``family`` 0|1; ``mu`` the family
-    parameter (None = infinity); ``criterion`` (if set, mu is chosen by :func:`selection.best_mu`);
-    ``targets`` (2, 3) world points for the axis criteria; ``extra_poses`` for 'extra-poses'."""
+    """``method``: 'four-pose' (exactly 4 poses), 'three-pose' (exactly 3: the Bennett 4R) or
+    'fit' (>= 5); ``family`` 0|1; ``mu`` the family parameter (None = infinity); ``criterion``
+    (if set, mu is chosen by :func:`selection.best_mu`); ``targets`` (2, 3) world points for
+    the axis criteria; ``extra_poses`` for 'extra-poses'."""
 
     method: str = "four-pose"
     family: int = 0
@@ -124,6 +128,11 @@ class Design:
     mesh_dirs: tuple[str, ...] = ()
 
     @property
+    def linkage(self) -> str:
+        """'bennett' for method 'three-pose', else '6R' (:data:`LINKAGES`)."""
+        return "bennett" if self.motion.method == "three-pose" else "6R"
+
+    @property
     def pose_array(self) -> tuple[np.ndarray, np.ndarray]:
         """Positions (m, 3) and wxyz (m, 4)."""
         return (np.array([p.position for p in self.poses]), np.array([p.wxyz for p in self.poses]))
@@ -159,10 +168,10 @@ def _choice(v: Any, path: str, options: tuple) -> Any:
     return v
 
 
-def _motion(v: Any) -> MotionSettings:
+def _motion(v: Any, default_method: str) -> MotionSettings:
     d = chk.obj(v, "motion")
     chk.check_keys(d, {"method", "family", "mu", "criterion", "targets", "extra_poses"}, "motion")
-    method = _choice(d.get("method", "four-pose"), "motion.method", METHODS)
+    method = _choice(d.get("method", default_method), "motion.method", METHODS)
     family = chk.integer(d.get("family", 0), "motion.family", 0, 1)
     mu = d.get("mu", "inf")
     mu = None if mu == "inf" else chk.number(mu, "motion.mu")
@@ -241,7 +250,7 @@ def design_from_dict(data: Any) -> Design:
     d = chk.obj(data, "design")
     chk.check_depth(d)
     allowed = {"format", "version", "name", "poses", "motion", "inertia", "loop",
-               "realization", "locked", "evolution", "end_effector", "drive"}
+               "realization", "locked", "evolution", "end_effector", "drive", "linkage"}
     chk.check_keys(d, allowed, "design")
     if d.get("format", FORMAT) != FORMAT:
         raise DesignFileError("format", f"must be {shown(FORMAT)}, got {shown(d['format'])}")
@@ -258,8 +267,7 @@ def design_from_dict(data: Any) -> Design:
     poses = _poses(d["poses"], "poses", chk.MIN_POSES)
     positions = np.array([p.position for p in poses])
     extent = float(np.max(np.linalg.norm(positions - positions[0], axis=1)))
-    motion = _motion(d.get("motion", {}))
-    loop = chk.integer(d.get("loop", 0), "loop", 0, 8)
+    motion, loop = _linkage(d, len(poses))
     locked = chk.array(d.get("locked", []), "locked", 0, len(poses), "pose indices")
     locked = [chk.integer(i, f"locked[{j}]", 0, len(poses) - 1) for j, i in enumerate(locked)]
     return Design(
@@ -274,6 +282,29 @@ def design_from_dict(data: Any) -> Design:
         end_effector=_end_effector(d.get("end_effector")),
         drive=DriveSettings(**chk.drive(d.get("drive", {}))),
     )
+
+
+def _linkage(d: dict, n_poses: int) -> tuple[MotionSettings, int]:
+    """Motion settings and loop of design dict ``d``, checked against its ``linkage``: absent,
+    it follows the method ('bennett' for 'three-pose'); the method's default is 'three-pose'
+    for a Bennett linkage or, with no linkage given, exactly three poses. A Bennett design has
+    one loop (0) and no mu to choose (no criterion)."""
+    linkage = _choice(d.get("linkage"), "linkage", (*LINKAGES, None))
+    bennett = linkage == "bennett" or (linkage is None and n_poses == 3)
+    motion = _motion(d.get("motion", {}), "three-pose" if bennett else "four-pose")
+    three = motion.method == "three-pose"
+    if linkage is not None and (linkage == "bennett") != three:
+        wanted = '"three-pose"' if linkage == "bennett" else '"four-pose" or "fit"'
+        raise DesignFileError("motion.method", f"linkage {shown(linkage)} is made by method "
+                              f"{wanted}, got {shown(motion.method)}")
+    loop = chk.integer(d.get("loop", 0), "loop", 0, 8)
+    if three and loop != 0:
+        raise DesignFileError("loop", f"a Bennett linkage (three poses) has one loop: 0, got "
+                              f"{loop}")
+    if three and motion.criterion is not None:
+        raise DesignFileError("motion.criterion", "a Bennett linkage (three poses) has one "
+                              f"motion: no mu to choose, got {shown(motion.criterion)}")
+    return motion, loop
 
 
 def _end_effector(v: Any) -> EndEffectorSettings | None:
@@ -311,7 +342,10 @@ def check_pose_count(design: Design) -> None:
     n, method = len(design.poses), design.motion.method
     if method == "four-pose" and n != 4:
         raise DesignFileError("poses", f"method 'four-pose' needs exactly 4 poses, got {n} "
-                              "(use method 'fit' for 5 or more)")
+                              "(use method 'three-pose' for 3, 'fit' for 5 or more)")
+    if method == "three-pose" and n != 3:
+        raise DesignFileError("poses", f"method 'three-pose' (the Bennett linkage) needs "
+                              f"exactly 3 poses, got {n}")
     if method == "fit" and n < 5:
         raise DesignFileError("poses", f"method 'fit' needs at least 5 poses, got {n}")
 
@@ -323,6 +357,7 @@ def design_to_dict(design: Design) -> dict[str, Any]:
         "format": FORMAT,
         "version": VERSION,
         "name": design.name,
+        "linkage": design.linkage,
         "poses": [_pose_dict(p) for p in design.poses],
         "motion": {
             "method": design.motion.method,

@@ -25,7 +25,7 @@ MAX_DEPTH = 16
 #: and int() of a longer one costs time); a 400-digit number then reaches its field's check
 MAX_NUMBER_CHARS = 1000
 #: number of poses (``poses``), and at most this many ``motion.extra_poses``
-MIN_POSES, MAX_POSES = 4, 1000
+MIN_POSES, MAX_POSES = 3, 1000
 #: largest magnitude of any length or other number (design units: positions up to 1e12 keep
 #: the required scale invariance from 1e-6 to 1e8 units with room to spare)
 MAX_LENGTH = 1e12

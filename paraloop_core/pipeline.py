@@ -1,4 +1,5 @@
-"""Design -> solution: motion, six factorizations, nine loops, singularity, realization.
+"""Design -> solution: motion, six factorizations, nine loops, singularity, realization (or,
+from three poses, the Bennett quadratic, its two factorizations and its 4R loop, not realized).
 
 The result JSON (``docs/result-format.md``) is produced by :func:`result_to_dict`.
 World frame throughout: the motion is ``C(t) = M(t) S_0`` with ``M`` monic, so ``C(inf) ∝ S_0``
@@ -17,8 +18,8 @@ from paraloop_core.algebra import dq, factor
 from paraloop_core.design import Design, check_pose_count, mesh_file
 from paraloop_core.design_checks import design_field
 from paraloop_core.errors import ParaloopError, RealizationError
-from paraloop_core.linkage import loops, singularity
-from paraloop_core.motion import fourpose, metric
+from paraloop_core.linkage import bennett, loops, singularity
+from paraloop_core.motion import fourpose, metric, threepose
 from paraloop_core.result import result_to_dict
 
 #: Work units (:meth:`realize.Search.work`, about 0.3 ms each on one core) of the realization
@@ -33,23 +34,24 @@ class Solution:
     """Everything computed from a design (arrays in world coordinates, design units)."""
 
     design: Design
-    motion: np.ndarray  # (4, 8) C(t) = M(t) S_0, ascending powers
-    monic: np.ndarray  # (4, 8) M(t), monic
+    motion: np.ndarray  # (n+1, 8) C(t) = M(t) S_0, ascending powers; n = 3, Bennett n = 2
+    monic: np.ndarray  # (n+1, 8) M(t), monic
     reference: np.ndarray  # (8,) S_0 (unit)
     pose_parameters: np.ndarray  # (m,) t_i with C(t_i) ∝ S_i; inf for S_0
     mu: float | None  # family parameter used (None = inf)
-    factorizations: factor.Factorizations
-    loops: list[loops.Loop]
-    singularity: np.ndarray  # (9,) min over the cycle of the singularity measure
-    singularity_t: np.ndarray  # (9,) where the min occurs (inf allowed)
+    factorizations: factor.Factorizations  # six (Bennett: two)
+    loops: list[loops.Loop]  # the nine 6R loops (Bennett: its one 4R loop)
+    singularity: np.ndarray  # (9,) / (1,) min over the cycle of the singularity measure
+    singularity_t: np.ndarray  # (9,) / (1,) where the min occurs (inf allowed)
     realization: Any = None  # certified.Realization or None
     fit: Any = None  # evolution.FitResult for method 'fit', else None
     end_effector: Any = None  # ee_certificate.EndEffectorRealization when the design has one
     #: JSON-ready: ``status`` found | not_found, ``attempts``, ``reason``/``fallback``
     realization_report: dict | None = None
     unit: float = 1.0  # :func:`unit_length` of the targets, design units
-    #: ``(9, 6, 8)`` the loops' joint factors in ``unit`` (the numbers the realization
-    #: searches: the same bits in any unit of the design); None = ``loops`` in ``unit`` 1
+    #: ``(9, 6, 8)`` (Bennett ``(1, 4, 8)``) the loops' joint factors in ``unit`` (the
+    #: numbers the realization searches: the same bits in any unit of the design); None =
+    #: ``loops`` in ``unit`` 1
     loop_factors_unit: np.ndarray | None = None
 
     def search_factors(self, loop: int) -> tuple[np.ndarray, float]:
@@ -137,7 +139,10 @@ def solve(design: Design, *, realize: bool = True, other_loops: bool = True,
           quick_work: int | None = None, check: Callable[[], None] | None = None) -> Solution:
     """Compute the solution of a design; raises ParaloopError subclasses (ValueError) with a
     clear message for degenerate poses, non-generic motions or impossible realization
-    parameters. A realization that is not found is not an error: the solution then carries
+    parameters. A Bennett design (method 'three-pose') gets the quadratic through its poses,
+    both factorizations and the 4R loop; its realization is reported ``not_found`` with
+    :data:`BENNETT_REALIZATION` (not searched), and ``hint``, ``pattern``, ``quick_work`` do
+    not apply. A realization that is not found is not an error: the solution then carries
     ``realization_report['status'] == 'not_found'`` with the reason and the attempts (the
     design's loop, thinner bars, then with ``other_loops`` the other loops, each with its
     work budget: :data:`FIRST_ATTEMPT_WORK`, :data:`FALLBACK_WORK`). ``progress(fraction,
@@ -175,18 +180,34 @@ def solve(design: Design, *, realize: bool = True, other_loops: bool = True,
         fit = None
         pos, wxyz = design.pose_array
         poses_u = dq.from_pos_wxyz(on_unit_grid(pos / unit), wxyz)
-        c_rel, pose_t, mu = _four_pose(design, poses_u, unit)
+        if design.linkage == "bennett":
+            c_rel, mu = threepose.three_pose_motion(poses_u), None
+            pose_t = np.concatenate([[np.inf], threepose.POSE_PARAMETERS])
+        else:
+            c_rel, pose_t, mu = _four_pose(design, poses_u, unit)
         reference_u = poses_u[0]
         reference = dq.scale_lengths(reference_u, unit)  # S_0 on the grid (1e-12 of the size)
     monic_u = fourpose.world_motion(reference_u, c_rel)
-    facts_u = factor.all_factorizations(monic_u)
-    jf_u = loops.loop_joint_factors(facts_u.factors)  # (9, 6, 8), as nine_loops orders them
-    s_min, s_t = singularity.singularity_min(jf_u, length=1.0)
+    if design.linkage == "bennett":
+        facts_u = factor.quadratic_factorizations(monic_u)
+        jf_u = bennett.loop_joint_factors(facts_u.factors)[None]  # (1, 4, 8)
+        s_min, s_t = bennett.singularity_min(jf_u, length=1.0)
+        make_loops = bennett.bennett_loops
+    else:
+        facts_u = factor.all_factorizations(monic_u)
+        jf_u = loops.loop_joint_factors(facts_u.factors)  # (9, 6, 8), as nine_loops orders them
+        s_min, s_t = singularity.singularity_min(jf_u, length=1.0)
+        make_loops = loops.nine_loops
     monic = dq.scale_lengths(monic_u, unit)
     facts = replace(facts_u, factors=dq.scale_lengths(facts_u.factors, unit))
     motion = dq.mul(monic, reference)
-    sol = Solution(design, motion, monic, reference, pose_t, mu, facts, loops.nine_loops(facts),
+    sol = Solution(design, motion, monic, reference, pose_t, mu, facts, make_loops(facts),
                    s_min, s_t, fit=fit, unit=unit, loop_factors_unit=jf_u)
+    if realize and design.realization.enabled and design.linkage == "bennett":
+        return replace(sol, realization_report={
+            "status": "not_found", "attempts": [], "reason": BENNETT_REALIZATION,
+            "advice": "use the loop's axes in 'loops' (a realization needs the search and the "
+                      "certificate generalized to four joints)"})
     if realize and design.realization.enabled:
         try:
             warm = warm_realization(sol, hint, pattern)
@@ -305,6 +326,13 @@ def warm_realization(sol: Solution, hint: Solution | None,
             report = {"status": "found", "attempts": [], "fallback": None, "warm_start": True}
             return replace(sol, realization=real, end_effector=ee, realization_report=report)
     return None
+
+
+#: Why a Bennett design is reported ``not_found`` (docs/result-format.md): never searched.
+BENNETT_REALIZATION = (
+    "Bennett realization not yet supported: the collision-free search and its certificate "
+    "(realization.realize) are written for the six joints of a 6R loop (12 vertices, 42 bar "
+    "pairs); the Bennett 4R loop's axes are in 'loops'")
 
 
 #: Largest singularity measure (unit-free, the best of the nine loops) below which a design

@@ -41,15 +41,16 @@ def result_to_dict(sol: Any, drive: bool | None = None) -> dict[str, Any]:
         "motion": {
             "coefficients": sol.motion.tolist(),
             "pose_parameters": [_t_json(t) for t in sol.pose_parameters],
-            "family": sol.design.motion.family,
-            "mu": _t_json(np.inf if sol.mu is None else sol.mu),
+            **({} if sol.design.linkage == "bennett" else {  # one motion: no family, no mu
+                "family": sol.design.motion.family,
+                "mu": _t_json(np.inf if sol.mu is None else sol.mu)}),
             "norm_quadratics": {labels[i]: [float(q[0]), float(q[1]), 1.0]
                                 for i, q in enumerate(facts.quadratics)},
         },
         "factorizations": [
             {"norm_order": [labels[i] for i in facts.norm_order[j]],
              "factors": facts.factors[j].tolist()}
-            for j in range(6)
+            for j in range(len(facts.factors))
         ],
         "loops": [
             {"type": lp.kind, "factorizations": list(lp.factorizations),
@@ -58,6 +59,7 @@ def result_to_dict(sol: Any, drive: bool | None = None) -> dict[str, Any]:
             for k, lp in enumerate(sol.loops)
         ],
         "loop": sol.design.loop,
+        "linkage": sol.design.linkage,
     }
     a, b, length = factor.conditioning_batch(sol.monic)
     out["conditioning"] = {
@@ -83,7 +85,11 @@ def result_to_dict(sol: Any, drive: bool | None = None) -> dict[str, Any]:
         from paraloop_core.realization import ee_certificate
 
         out["end_effector"] = ee_certificate.ee_to_dict(sol.end_effector)
-    if drive or (drive is None and _asks_for_drive(sol.design.drive)):
+    wants_drive = drive or (drive is None and _asks_for_drive(sol.design.drive))
+    if wants_drive and sol.design.linkage == "bennett":
+        out["drive"] = {"error": "drive analysis of a Bennett loop not yet supported (the "
+                                 "drive plan is written for 6R loops)"}
+    elif wants_drive:
         from paraloop_core.linkage import drive_plan
 
         try:  # the chosen loop in design units, base link resting; never fails a solve

@@ -138,7 +138,7 @@ def test_unreadable_files(tmp_path):
          "budget"),
         (["realization", "foo"], 1, "realization.foo", 'unknown key "foo" at realization'),
         (["name"], "x" * 2000, "name", "1000"),
-        (["poses"], [TV8["poses"][0]] * 1001, "poses", "4..1000"),
+        (["poses"], [TV8["poses"][0]] * 1001, "poses", "3..1000"),
         (["inertia", "weight"], 1e9, "inertia.weight", "1e+06"),
         (["end_effector"], {"mesh": "a\x00b"}, "end_effector.mesh", "NUL"),
         (["realization", "fixed"], {"٣": 0.0}, "realization.fixed.\\u0663", "0"),

@@ -137,7 +137,8 @@ def _conditioned_roots(cs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     if n > 1:
         i, j = _pairs(n)
         yy = np.maximum(y[..., i] * y[..., j], 1e-300)
-        sep = np.abs(z[..., i] - z[..., j]) ** 2 / (2.0 * yy)
+        with np.errstate(over="ignore"):  # inf: a root on the real line (a three-pose fuzz case)
+            sep = np.abs(z[..., i] - z[..., j]) ** 2 / (2.0 * yy)
         code = np.where(np.sqrt(sep.min(axis=-1) / 2.0) <= TOL.repeated, 2, code)
         real |= sep.max(axis=-1) >= TOL.real_separation
     return z, np.where(real, 1, code)
@@ -227,10 +228,12 @@ _FLIP_STAGES = _flip_stages(_FLIP_PLAN)
 
 @dataclass(frozen=True)
 class Factorizations:
-    """All six factorizations of monic cubics.
+    """All six factorizations of monic cubics, or both of a quadratic.
 
-    ``factors`` ``(..., 6, 3, 8)``: ``C = (t - f[j,0])(t - f[j,1])(t - f[j,2])``;
-    ``norm_order`` ``(6, 3)``: label indices of each factor's norm quadratic (:data:`NORM_ORDERS`);
+    ``factors`` ``(..., 6, 3, 8)``: ``C = (t - f[j,0])(t - f[j,1])(t - f[j,2])`` (a quadratic's
+    ``(2, 2, 8)``, :func:`quadratic_factorizations`);
+    ``norm_order`` ``(6, 3)``: label indices of each factor's norm quadratic (:data:`NORM_ORDERS`;
+    a quadratic's ``(2, 2)`` :data:`QUADRATIC_ORDERS`);
     ``quadratics`` ``(..., 3, 2)`` the labelled norm factors ``[m0, m1]`` (A, B, C);
     ``code`` ``(...)`` reason codes (0 = ok, see :data:`REASONS`).
     """
@@ -241,7 +244,7 @@ class Factorizations:
 
     @property
     def norm_order(self) -> np.ndarray:
-        return NORM_ORDERS
+        return NORM_ORDERS if self.factors.shape[-2] == 3 else QUADRATIC_ORDERS
 
     @property
     def ok(self) -> np.ndarray:
@@ -384,12 +387,46 @@ def factorize(c: np.ndarray, order: list[int] | None = None) -> np.ndarray:
     order = list(range(n)) if order is None else list(order)
     if sorted(order) != list(range(n)):
         raise ValueError(f"order must be a permutation of 0..{n - 1}, got {order}")
+    h, _, back = _factorize_conditioned(mono, order)
+    return _unconditioned(h, *back)
+
+
+def _factorize_conditioned(mono: np.ndarray, order: list[int]
+                           ) -> tuple[np.ndarray, np.ndarray, tuple[np.ndarray, ...]]:
+    """``(h_s, quads, (a, b, length))``: the HSS factors of monic ``mono`` in the conditioned
+    frame (norm order ``order``), its labelled norm quadratics in t and the map back
+    (:func:`_unconditioned`); raises :class:`NonGenericMotionError` (float64's verdict)."""
     cs, a, b, length = _conditioned(mono)
-    _, quads_s, code = _labelled_quadratics(cs, a, b)
+    quads, quads_s, code = _labelled_quadratics(cs, a, b)
     raise_for_code(int(code))
     h, hcode = factorize_batch(cs, quads_s[order])
     raise_for_code(int(hcode))
-    return _unconditioned(h, a, b, length)
+    return h, quads, (a, b, length)
+
+
+#: The two norm orders of a quadratic (AB, BA), one Bennett flip apart.
+QUADRATIC_ORDERS = np.array([[0, 1], [1, 0]])
+
+
+def quadratic_factorizations(c: np.ndarray) -> Factorizations:
+    """Both factorizations ``(t - h_1)(t - h_2) = (t - k_1)(t - k_2)`` of one quadratic
+    ``(3, 8)`` (made monic): HSS13a in norm order A, B and its Bennett flip (norm order B, A;
+    :data:`QUADRATIC_ORDERS`), computed in the conditioned frame like the cubic's. Raises
+    :class:`NonGenericMotionError` when float64 finds the motion not generic (no high-precision
+    confirmation: a quadratic near that edge is refused) or the flip is undefined."""
+    mono = check_motion(c)
+    if mono.shape != (3, 8):
+        raise ValueError(f"expected a quadratic (3, 8), got {mono.shape}")
+    h, quads, back = _factorize_conditioned(mono, [0, 1])
+    k1, k2 = bennett_flip(h[0], h[1])
+    fs = _unconditioned(np.stack([h, np.stack([k1, k2])]), *back)
+    residual = float(product_residual(fs, mono).max())
+    if not residual <= TOL.factor_exact:
+        raise NonGenericMotionError(
+            f"non-generic motion: the factors of the quadratic multiply back to it only within "
+            f"{residual:.1e} (float64 lost the factorization; move the poses apart)",
+            "singular-remainder")
+    return Factorizations(fs, quads, np.int8(0))
 
 
 def all_factorizations(c: np.ndarray) -> Factorizations:

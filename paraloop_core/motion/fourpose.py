@@ -46,13 +46,17 @@ class FourPoseFamilies:
         return tuple((0, *(int(i) + 1 for i in np.argsort(tf))) for tf in self.t)
 
 
-_UPPER = np.triu(np.ones((4, 4), dtype=bool), 1)  # pose pairs i < j
+#: number words of the pose counts interpolated here (three: the Bennett quadratic, threepose)
+_COUNT = {3: "three", 4: "four"}
+#: the motion polynomial through that many poses
+_CURVE = {3: "quadratic", 4: "cubic"}
 
 
-def _check_poses(poses: np.ndarray) -> np.ndarray:
+def _check_poses(poses: np.ndarray, count: int) -> np.ndarray:
     s = np.asarray(poses, dtype=np.float64)
-    if s.shape != (4, 8):
-        raise ValueError(f"four-pose interpolation needs poses of shape (4, 8), got {s.shape}")
+    if s.shape != (count, 8):
+        raise ValueError(f"{_COUNT[count]}-pose interpolation needs poses of shape ({count}, 8), "
+                         f"got {s.shape}")
     if not np.isfinite(s).all():
         raise ValueError("poses must be finite")
     # Primal parts are compared among themselves only: the dual part carries the length unit.
@@ -63,8 +67,11 @@ def _check_poses(poses: np.ndarray) -> np.ndarray:
     return dq.study_project(dq.normalize(s))
 
 
-def _polar(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Polar form of the Study quadric ``B(x, y) = x_P . y_D + x_D . y_P`` (broadcasting)."""
+def polar(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Polar form of the Study quadric ``B(x, y) = x_P . y_D + x_D . y_P`` of dual quaternions
+    ``(..., 8)`` (broadcasting)."""
+    if np.shape(x)[-1:] != (8,) or np.shape(y)[-1:] != (8,):
+        raise ValueError(f"dual quaternions (..., 8) needed, got {np.shape(x)}, {np.shape(y)}")
     return (x[..., :4] * y[..., 4:] + x[..., 4:] * y[..., :4]).sum(axis=-1)
 
 
@@ -78,7 +85,7 @@ def _rulings(p: np.ndarray) -> np.ndarray:
     _, _, vt = np.linalg.svd(bm[[0, 4], :])
     null = vt[2:].T  # (4, 2): combinations with zero scalar and zero dual-scalar part
     kk = bm @ null
-    q = 0.5 * _polar(kk.T[:, None, :], kk.T[None, :, :])  # (2, 2) quadratic form on the pencil
+    q = 0.5 * polar(kk.T[:, None, :], kk.T[None, :, :])  # (2, 2) quadratic form on the pencil
     lam, vec = np.linalg.eigh(q)
     big = np.abs(lam).max()
     if big <= TOL.zero:
@@ -100,13 +107,20 @@ def _rulings(p: np.ndarray) -> np.ndarray:
     return c / c[:, :1]
 
 
-def four_pose_families(poses: np.ndarray) -> FourPoseFamilies:
-    """Both cubic families through four world poses ``(4, 8)`` (unit DQs, any frame).
+def relative_poses(poses: np.ndarray, count: int = 4
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(s, rel, scaled)`` of ``count`` (3 or 4) world poses ``(count, 8)`` (unit DQs): the
+    Study-projected unit poses, the relative poses ``p_i = S_0^-1 S_i`` (``p_0 = 1``) and the
+    same with dual parts scaled to O(1), after the checks both interpolations need.
 
-    Raises :class:`InterpolationError` with reason ``coincident``, ``rank``, ``no-real`` or
-    ``zero-pitch``; ValueError for malformed input.
+    Raises :class:`InterpolationError` with reason ``coincident`` (two poses equal), ``rank``
+    (the poses span less than a projective ``(count - 1)``-space) or ``zero-pitch`` (a pose is
+    reached from S_0 by a rotation without pitch or a pure translation); ValueError for
+    malformed input.
     """
-    s = _check_poses(poses)
+    if count not in _COUNT:
+        raise ValueError(f"count must be 3 or 4, got {count!r}")
+    s = _check_poses(poses, count)
     rel = dq.normalize(dq.mul(dq.inv(s[0]), s))
     rel[0] = dq.IDENTITY
     # Scale lengths to O(1) for the rank and tolerance tests (c and t are scale invariant).
@@ -114,18 +128,19 @@ def four_pose_families(poses: np.ndarray) -> FourPoseFamilies:
     scaled = rel.copy()
     scaled[:, 4:] *= 1.0 / length if length > 0 else 1.0
     gap = np.minimum(np.abs(scaled[:, None] - scaled).max(-1),
-                     np.abs(scaled[:, None] + scaled).max(-1))  # (4, 4), same pose up to sign
-    close = (gap <= TOL.residual) & _UPPER
+                     np.abs(scaled[:, None] + scaled).max(-1))  # same pose up to sign
+    close = (gap <= TOL.residual) & np.triu(np.ones((count, count), dtype=bool), 1)
     if close.any():
-        i, j = divmod(int(close.argmax()), 4)  # the first pair i < j, row-major
+        i, j = divmod(int(close.argmax()), count)  # the first pair i < j, row-major
         raise InterpolationError(
-            f"poses {i} and {j} coincide (within tolerance): four distinct poses are "
-            "needed", "coincident")
+            f"poses {i} and {j} coincide (within tolerance): {_COUNT[count]} distinct poses "
+            "are needed", "coincident")
     sv = np.linalg.svd(scaled, compute_uv=False)
     if sv[-1] <= TOL.rank * sv[0]:
         raise InterpolationError(
-            "degenerate poses: the four poses span less than a projective 3-space in the Study "
-            "quadric (rank < 4), so no cubic interpolates them", "rank")
+            f"degenerate poses: the {_COUNT[count]} poses span less than a projective "
+            f"{count - 1}-space in the Study quadric (rank < {count}), so no {_CURVE[count]} "
+            "interpolates them", "rank")
     # Pitch relative to the pose's own displacement (not to the largest one), so a pose that
     # is merely close to S_0 is accepted: it is visited at a large |t|. Products of unit inputs
     # carry round-off ~1e-16 |D|, so a ratio above TOL.zero_pitch is certain.
@@ -134,13 +149,23 @@ def four_pose_families(poses: np.ndarray) -> FourPoseFamilies:
     if len(flat):
         i = int(flat[0]) + 1
         raise InterpolationError(
-            f"pose {i} is reached from pose 0 by a rotation without pitch (translation "
-            f"along the axis / offset = {ratio[i - 1]:.1e} <= {TOL.zero_pitch:g}): within the "
-            "precision of the input it lies on a ruling through S_0 and cannot be visited; "
-            f"move pose {i} along its rotation axis by a small amount", "zero-pitch")
+            f"pose {i} is reached from pose 0 by a rotation without pitch or a pure translation "
+            f"(translation along the axis / offset = {ratio[i - 1]:.1e} <= {TOL.zero_pitch:g}): "
+            "within the precision of the input it lies on a ruling through S_0 and cannot be "
+            f"visited; move pose {i} along its rotation axis by a small amount", "zero-pitch")
+    return s, rel, scaled
+
+
+def four_pose_families(poses: np.ndarray) -> FourPoseFamilies:
+    """Both cubic families through four world poses ``(4, 8)`` (unit DQs, any frame).
+
+    Raises :class:`InterpolationError` with reason ``coincident``, ``rank``, ``no-real`` or
+    ``zero-pitch`` (:func:`relative_poses`); ValueError for malformed input.
+    """
+    s, rel, scaled = relative_poses(poses)
     c = _rulings(scaled)
     k = c @ rel
-    t = _polar((c @ scaled)[:, None, :], scaled[None, 1:]) / scaled[1:, 4]
+    t = polar((c @ scaled)[:, None, :], scaled[None, 1:]) / scaled[1:, 4]
     keys = []
     for tf, cf in zip(t, c, strict=True):
         seq = [0, *(int(i) + 1 for i in np.argsort(tf))]
