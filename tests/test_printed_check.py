@@ -209,3 +209,16 @@ def test_filled_bore_is_reported(sample):
     assert any(f.startswith("joint 0: link 1 material inside the screw") for f in fails)
     assert any(f.startswith("joint 0: link 1 holds the") for f in fails)
     assert not any(f.startswith("joint 0: link 0") for f in fails)  # the other link is whole
+
+
+def test_result_of_another_loop_is_reported(sample):
+    """result.json naming a loop other than the printed one: its axes are metres off the
+    parts' joints, far beyond the micrometre the checker allows (a wrong loop, not round-off)."""
+    result = json.loads((sample / "result.json").read_text())
+    real = result["realization"]
+    real["loop"] = (real.get("loop", result["loop"]) + 1) % len(result["loops"])
+    (sample / "result.json").write_text(json.dumps(result))
+    found = pc.check_export(sample, collisions=False)
+    assert found["figures"]["closure_mm"] > 1000 * pc.CLOSURE_TOL_MM
+    assert any(f.startswith("result.json: the loop's joint axes part by") for f in
+               found["failures"])

@@ -289,13 +289,14 @@ class Search:
 
     def run_hint(self, shifts: np.ndarray, offsets: np.ndarray | None, *, p: float,
                  rho: float | None, d: float | None, d_fraction: float, rho_fraction: float,
-                 max_k: int, certify: bool = True) -> Any:
+                 max_k: int, certify: bool = True, refutations: int | None = None) -> Any:
         """Warm start: the shift pattern ``shifts`` ``(6,)`` and ``offsets`` ``(6,)`` of a
         realization of a nearby loop (the previous drag step), tried alone on this loop and
         certified exactly like :meth:`run`'s answers (thin check, exact minima, sound bounds);
         the :meth:`result`, or None when they do not give a collision-free realization here.
         ``offsets`` None: step 4 tries every offset sequence in the paper's order (as
-        :meth:`run` does for one thin polyline). Without ``certify`` the sound bounds are
+        :meth:`run` does for one thin polyline), giving up after ``refutations`` sequences
+        the sound check refutes (None: all). Without ``certify`` the sound bounds are
         skipped and only the vertices ``(12, 3)`` (design units) are returned: a drag
         preview, never a certificate."""
         tau = np.asarray(shifts, int)
@@ -320,6 +321,10 @@ class Search:
             proof = self.verify(step, seq)
             if proof is not None:
                 break
+            if refutations is not None:
+                refutations -= 1
+                if refutations <= 0:
+                    return None
             seqs = seqs[np.flatnonzero(seqs == seq)[0] + 1:]
         stats = {"k": k, "collision_checks": 1, "steps_back": 0, "min_distance_computations": 1,
                  "offset_rank": 0, "collision_checks_sequential": 1,

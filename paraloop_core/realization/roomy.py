@@ -42,6 +42,9 @@ FINE_P = 1000
 #: Bar radius of the search as a share of the thin polyline's sampled clearance (the offsets
 #: and thick bars take the rest); the printed parts are sized on the certified bounds anyway.
 RHO_SHARE = 0.3
+#: Offset sequences the sound check may refute per polyline before the next is tried (near
+#: a singular pose the exact minima can pass sequence after sequence the bounds cannot prove).
+REFUTATIONS = 4
 #: Rows of the nine thin pairs (bar i, bar j) among the 42 offset pairs.
 _THIN_ROWS = np.array([int(np.flatnonzero((OFFSET_PAIRS[:, 0] == 2 * i) &
                                           (OFFSET_PAIRS[:, 1] == 2 * j))[0])
@@ -136,7 +139,8 @@ def realize_roomy(joint_factors: np.ndarray, fixed: dict[int, float] | None, in_
         rho = min(RHO_SHARE * score[k] * extent, d / 2)
         real = search.run_hint(tau[k], None, p=FINE_P, rho=rho * search.unit,
                                d=d * search.unit, d_fraction=0.0, rho_fraction=0.0,
-                               max_k=int(np.abs(tau[k]).max()) or 1)
+                               max_k=int(np.abs(tau[k]).max()) or 1,
+                               refutations=REFUTATIONS)
         if real is not None:
             return real
     raise RealizationError(f"none of the {tries} roomiest polylines drawn for this loop is "
