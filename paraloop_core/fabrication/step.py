@@ -54,7 +54,7 @@ from OCP.TopoDS import TopoDS, TopoDS_Shape
 from OCP.XCAFDoc import XCAFDoc_ColorGen, XCAFDoc_DocumentTool
 from scipy.spatial import ConvexHull
 
-from paraloop_core.fabrication import csg
+from paraloop_core.fabrication import csg, step_hull
 from paraloop_core.fabrication.assembly import Assembly
 
 #: Points sampled on each round end of a hull's child (a fillet's boss).
@@ -212,7 +212,8 @@ def shape(n: csg.Node) -> TopoDS_Shape:
     if isinstance(n, csg.Cut):
         return _boolean(BRepAlgoAPI_Cut, [shape(n.base)], [shape(t) for t in n.tools])
     if isinstance(n, csg.Hull):
-        return _sewn(hull_faces(hull_points(n)))
+        exact = step_hull.exact_hull(n.items)
+        return exact if exact is not None else _sewn(hull_faces(hull_points(n)))
     if isinstance(n, csg.Trim):
         child = shape(n.child)
         normal = np.asarray(n.normal, float) / np.linalg.norm(n.normal)
