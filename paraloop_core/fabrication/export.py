@@ -7,9 +7,10 @@
   print faces and arranged on the printer's bed (:mod:`layout`);
 * ``assembly.glb``: the assembled loop, parts coloured per link, hardware in steel grey;
 * ``parts.step``: every printed part as one solid in the same home pose, exact (cylinders,
-  cones, hexagonal prisms, planes) where its :mod:`csg` tree has no mesh in it, else faceted
-  (an end-effector, a carved body); ``assembly.step``: those parts and the metal hardware,
-  named and coloured (:mod:`step`; written last, by :func:`step_files`);
+  cones, hexagonal prisms, planes, the fillets' oblique cones) where its :mod:`csg` tree has
+  no mesh in it, else faceted (an end-effector, a carved body); ``assembly.step``: those
+  parts and the metal hardware, named and coloured (:mod:`step`; written last, by
+  :func:`step_files`);
 * ``report.json``: what the program chose and measured (:mod:`printable`), the print layout
   with each part's support, the parts list and the bill of materials.
 """
@@ -116,7 +117,7 @@ def parts_entry(asm: Assembly, meshes: dict[str, trimesh.Trimesh],
 
 def step_files(asm: Assembly, report: dict) -> list[tuple[str, bytes]]:
     """``parts.step`` and ``assembly.step`` (:mod:`step`); each of ``report``'s ``parts``
-    gains ``step``: ``"exact"`` or ``"faceted"``."""
+    gains ``step``: ``"exact"``, ``"exact, polyhedral fillet"`` or ``"faceted"``."""
     from paraloop_core.fabrication import step  # OpenCascade: loaded only to write STEP
 
     colors = {p.name: color_of(-1 if p.role == "base" else p.link) for p in asm.parts}

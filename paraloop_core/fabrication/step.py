@@ -3,13 +3,14 @@
 :func:`shape` evaluates a part's :mod:`csg` tree, the one the meshes come from, with
 OpenCascade: a prism of more than :data:`csg.ROUND_SIDES` sides is a true cylinder (a cone
 for the plate's countersinks), a hexagonal bar or nut an exact hexagonal prism, the cuts and
-unions exact booleans, the print flat a planar cut. Two things stay polyhedral: a
-:class:`csg.Hull` (a fillet web: the hull of a boss and the bar's first millimetres, whose
-exact surface has oblique cone patches) is the hull of its children's corners and of their
-round ends sampled at :data:`HULL_SAMPLES` points, set :data:`HULL_INSET` inside the circle
-so that the exact boss covers its round side; a part whose tree holds a :class:`csg.Mesh`
-(an end-effector, a carved body) is written as its mesh's faceted solid (:func:`mesh_solid`).
-:func:`part_solid` says which (``"exact"`` or ``"faceted"``, the report's ``step``).
+unions exact booleans, the print flat a planar cut, a fillet (:class:`csg.Hull` of a boss and
+the bar's first millimetres) its true planes, cylinder and oblique cones
+(:mod:`step_hull`). Where that hull does not close, the fillet is the polyhedral hull of its
+children's corners and of their round ends sampled at :data:`HULL_SAMPLES` points,
+:data:`HULL_INSET` inside the circle so that the exact boss covers its round side (the part
+is then ``"exact, polyhedral fillet"``). A part whose tree holds a :class:`csg.Mesh` (an
+end-effector, a carved body) is written as its mesh's faceted solid (:func:`mesh_solid`,
+``"faceted"``). :func:`part_solid` says which: the report's ``step``.
 """
 
 from __future__ import annotations
@@ -202,41 +203,49 @@ def _flat(n: csg.Union) -> list[csg.Node]:
     return [x for k in n.items for x in (_flat(k) if isinstance(k, csg.Union) else [k])]
 
 
-def shape(n: csg.Node) -> TopoDS_Shape:
-    """The tree ``n`` as an OpenCascade shape (mm, home frame; module docstring)."""
+def shape(n: csg.Node, fallbacks: list | None = None) -> TopoDS_Shape:
+    """The tree ``n`` as an OpenCascade shape (mm, home frame; module docstring); each hull
+    built polyhedral is appended to ``fallbacks``."""
     if isinstance(n, csg.Prism):
         return _prism(n)
     if isinstance(n, csg.Union):  # nested unions in one boolean
-        kids = [shape(k) for k in _flat(n)]
+        kids = [shape(k, fallbacks) for k in _flat(n)]
         return kids[0] if len(kids) == 1 else _boolean(BRepAlgoAPI_Fuse, kids[:1], kids[1:])
     if isinstance(n, csg.Cut):
-        return _boolean(BRepAlgoAPI_Cut, [shape(n.base)], [shape(t) for t in n.tools])
+        return _boolean(BRepAlgoAPI_Cut, [shape(n.base, fallbacks)],
+                        [shape(t, fallbacks) for t in n.tools])
     if isinstance(n, csg.Hull):
         exact = step_hull.exact_hull(n.items)
-        return exact if exact is not None else _sewn(hull_faces(hull_points(n)))
+        if exact is not None:
+            return exact
+        if fallbacks is not None:
+            fallbacks.append(n)
+        return _sewn(hull_faces(hull_points(n)))
     if isinstance(n, csg.Trim):
-        child = shape(n.child)
+        child = shape(n.child, fallbacks)
         normal = np.asarray(n.normal, float) / np.linalg.norm(n.normal)
         off = n.offset / float(np.linalg.norm(n.normal))
         return _boolean(BRepAlgoAPI_Common, [child], [_halfspace(child, normal, off)])
     if isinstance(n, csg.Move):
-        return _moved(shape(n.child), n.frame)
+        return _moved(shape(n.child, fallbacks), n.frame)
     if isinstance(n, csg.Largest):
-        return max(solids_of(shape(n.child)), key=_volume)
+        return max(solids_of(shape(n.child, fallbacks)), key=_volume)
     raise ValueError("a mesh has no exact solid: write the part faceted (mesh_solid)")
 
 
 def part_solid(part) -> tuple[TopoDS_Shape, str]:
     """A :class:`parts.Part` (or :class:`assembly.Hardware`) as one OpenCascade solid and
-    ``"exact"`` or ``"faceted"`` (module docstring)."""
+    its kind: ``"exact"``, ``"exact, polyhedral fillet"`` or ``"faceted"`` (module
+    docstring)."""
     if part.csg is None or csg.faceted(part.csg):
         return mesh_solid(part.manifold if hasattr(part, "manifold") else part.solid), "faceted"
-    s = solids_of(shape(part.csg))
+    fallbacks: list = []
+    s = solids_of(shape(part.csg, fallbacks))
     if len(s) != 1:
         raise RuntimeError(f"{len(s)} solids where one was built")
     unify = ShapeUpgrade_UnifySameDomain(s[0], True, True, True)
     unify.Build()
-    return unify.Shape(), "exact"
+    return unify.Shape(), "exact, polyhedral fillet" if fallbacks else "exact"
 
 
 def step_bytes(items: list[tuple[str, TopoDS_Shape, np.ndarray]], label: str) -> bytes:
@@ -273,7 +282,7 @@ def step_files(asm: Assembly, colors: dict[str, np.ndarray], steel: np.ndarray
                ) -> tuple[list[tuple[str, bytes]], dict[str, str]]:
     """``parts.step`` (each printed part one named solid, mm, the assembled home pose: as the
     STL files) and ``assembly.step`` (those and the metal hardware, in ``colors`` (RGB by
-    part name) and ``steel``), and each part's kind of solid (``"exact"``, ``"faceted"``)."""
+    part name) and ``steel``), and each part's kind of solid (:func:`part_solid`)."""
     printed, kinds = [], {}
     for p in asm.parts:
         s, kinds[p.name] = part_solid(p)
