@@ -20,12 +20,16 @@ import tempfile
 
 import numpy as np
 from OCP.Bnd import Bnd_Box
+from OCP.BRep import BRep_Builder
 from OCP.BRepAlgoAPI import BRepAlgoAPI_Common, BRepAlgoAPI_Cut, BRepAlgoAPI_Fuse
 from OCP.BRepBndLib import BRepBndLib
 from OCP.BRepBuilderAPI import (
+    BRepBuilderAPI_MakeEdge,
     BRepBuilderAPI_MakeFace,
     BRepBuilderAPI_MakePolygon,
     BRepBuilderAPI_MakeSolid,
+    BRepBuilderAPI_MakeVertex,
+    BRepBuilderAPI_MakeWire,
     BRepBuilderAPI_Sewing,
     BRepBuilderAPI_Transform,
 )
@@ -37,7 +41,7 @@ from OCP.BRepPrimAPI import (
     BRepPrimAPI_MakePrism,
 )
 from OCP.collections import List_TopoDS_Shape
-from OCP.gp import gp, gp_Ax2, gp_Pnt, gp_Trsf, gp_Vec
+from OCP.gp import gp, gp_Ax2, gp_Dir, gp_Pln, gp_Pnt, gp_Trsf, gp_Vec
 from OCP.GProp import GProp_GProps
 from OCP.IFSelect import IFSelect_RetDone
 from OCP.Message import Message, Message_Gravity
@@ -51,7 +55,7 @@ from OCP.TDocStd import TDocStd_Document
 from OCP.TopAbs import TopAbs_SHELL, TopAbs_SOLID
 from OCP.TopExp import TopExp_Explorer
 from OCP.TopLoc import TopLoc_Location
-from OCP.TopoDS import TopoDS, TopoDS_Shape
+from OCP.TopoDS import TopoDS, TopoDS_Shape, TopoDS_Shell, TopoDS_Solid
 from OCP.XCAFDoc import XCAFDoc_ColorGen, XCAFDoc_DocumentTool
 from scipy.spatial import ConvexHull
 
@@ -165,10 +169,33 @@ def _sewn(polygons: list[np.ndarray]) -> TopoDS_Shape:
 
 
 def mesh_solid(man) -> TopoDS_Shape:
-    """A manifold3d solid's triangles as a faceted OpenCascade solid (mm)."""
+    """A manifold3d solid's triangles as a faceted OpenCascade solid (mm): its vertices and
+    edges shared as in the mesh (no sewing), each triangle a planar face."""
     mesh = man.to_mesh()
     v = np.asarray(mesh.vert_properties[:, :3], float)
-    return _sewn(list(v[np.asarray(mesh.tri_verts)]))
+    tris = np.asarray(mesh.tri_verts, np.int64)
+    normals = np.cross(v[tris[:, 1]] - v[tris[:, 0]], v[tris[:, 2]] - v[tris[:, 0]])
+    area = np.linalg.norm(normals, axis=1) > 0
+    if not area.all():  # a triangle without area: sew the others
+        return _sewn(list(v[tris[area]]))
+    vertices = [BRepBuilderAPI_MakeVertex(gp_Pnt(*map(float, x))).Vertex() for x in v]
+    edges: dict[tuple[int, int], TopoDS_Shape] = {}
+    builder, shell = BRep_Builder(), TopoDS_Shell()
+    builder.MakeShell(shell)
+    for t, n in zip(tris.tolist(), normals, strict=True):
+        wire = BRepBuilderAPI_MakeWire()
+        for a, b in ((t[0], t[1]), (t[1], t[2]), (t[2], t[0])):  # each edge made once,
+            key = (min(a, b), max(a, b))                           # shared by its two faces
+            if key not in edges:
+                edges[key] = BRepBuilderAPI_MakeEdge(vertices[key[0]], vertices[key[1]]).Edge()
+            wire.Add(edges[key] if a < b else TopoDS.Edge(edges[key].Reversed()))
+        plane = gp_Pln(gp_Pnt(*map(float, v[t[0]])), gp_Dir(*map(float, n)))
+        builder.Add(shell, BRepBuilderAPI_MakeFace(plane, wire.Wire(), True).Face())
+    shell.Closed(True)
+    solid = TopoDS_Solid()
+    builder.MakeSolid(solid)
+    builder.Add(solid, shell)
+    return solid
 
 
 def _halfspace(s: TopoDS_Shape, normal: np.ndarray, offset: float) -> TopoDS_Shape:
