@@ -34,7 +34,6 @@ from OCP.BRepBuilderAPI import (
     BRepBuilderAPI_Transform,
 )
 from OCP.BRepCheck import BRepCheck_Analyzer
-from OCP.BRepGProp import BRepGProp
 from OCP.BRepPrimAPI import (
     BRepPrimAPI_MakeBox,
     BRepPrimAPI_MakeCone,
@@ -43,7 +42,6 @@ from OCP.BRepPrimAPI import (
 )
 from OCP.collections import List_TopoDS_Shape
 from OCP.gp import gp, gp_Ax2, gp_Dir, gp_Pln, gp_Pnt, gp_Trsf, gp_Vec
-from OCP.GProp import GProp_GProps
 from OCP.IFSelect import IFSelect_RetDone
 from OCP.Message import Message, Message_Gravity
 from OCP.Quantity import Quantity_Color, Quantity_TOC_RGB
@@ -55,7 +53,6 @@ from OCP.TCollection import TCollection_ExtendedString
 from OCP.TDataStd import TDataStd_Name
 from OCP.TDocStd import TDocStd_Document
 from OCP.TopAbs import TopAbs_SHELL, TopAbs_SOLID
-from OCP.TopExp import TopExp_Explorer
 from OCP.TopLoc import TopLoc_Location
 from OCP.TopoDS import TopoDS, TopoDS_Shape, TopoDS_Shell, TopoDS_Solid
 from OCP.XCAFDoc import XCAFDoc_ColorGen, XCAFDoc_DocumentTool
@@ -90,7 +87,7 @@ def _polygon(points: np.ndarray) -> TopoDS_Shape:
     """The planar face bounded by the closed polygon ``points`` ``(n, 3)``."""
     poly = BRepBuilderAPI_MakePolygon()
     for p in points:
-        poly.Add(gp_Pnt(*map(float, p)))
+        poly.Add(step_hull.pnt(p))
     poly.Close()
     return BRepBuilderAPI_MakeFace(poly.Wire(), True).Face()
 
@@ -166,9 +163,9 @@ def _sewn(polygons: list[np.ndarray]) -> TopoDS_Shape:
     for poly in polygons:
         sew.Add(_polygon(poly))
     sew.Perform()
-    shell = TopExp_Explorer(sew.SewedShape(), TopAbs_SHELL)
-    solid = BRepBuilderAPI_MakeSolid(TopoDS.Shell(shell.Current())).Solid()
-    if _volume(solid) < 0:  # the shell faced inwards
+    shell = step_hull.shapes_of(sew.SewedShape(), TopAbs_SHELL)[0]
+    solid = BRepBuilderAPI_MakeSolid(TopoDS.Shell(shell)).Solid()
+    if step_hull.volume(solid) < 0:  # the shell faced inwards
         solid.Reverse()
     return solid
 
@@ -183,7 +180,7 @@ def mesh_solid(man) -> TopoDS_Shape:
     area = np.linalg.norm(normals, axis=1) > 0
     if not area.all():  # a triangle without area: sew the others
         return _sewn(list(v[tris[area]]))
-    vertices = [BRepBuilderAPI_MakeVertex(gp_Pnt(*map(float, x))).Vertex() for x in v]
+    vertices = [BRepBuilderAPI_MakeVertex(step_hull.pnt(x)).Vertex() for x in v]
     edges: dict[tuple[int, int], TopoDS_Shape] = {}
     builder, shell = BRep_Builder(), TopoDS_Shell()
     builder.MakeShell(shell)
@@ -194,7 +191,7 @@ def mesh_solid(man) -> TopoDS_Shape:
             if key not in edges:
                 edges[key] = BRepBuilderAPI_MakeEdge(vertices[key[0]], vertices[key[1]]).Edge()
             wire.Add(edges[key] if a < b else TopoDS.Edge(edges[key].Reversed()))
-        plane = gp_Pln(gp_Pnt(*map(float, v[t[0]])), gp_Dir(*map(float, n)))
+        plane = gp_Pln(step_hull.pnt(v[t[0]]), gp_Dir(*map(float, n)))
         builder.Add(shell, BRepBuilderAPI_MakeFace(plane, wire.Wire(), True).Face())
     shell.Closed(True)
     solid = TopoDS_Solid()
@@ -216,19 +213,9 @@ def _halfspace(s: TopoDS_Shape, normal: np.ndarray, offset: float) -> TopoDS_Sha
     return _moved(local, frame)
 
 
-def _volume(s: TopoDS_Shape) -> float:
-    props = GProp_GProps()
-    BRepGProp.VolumeProperties_s(s, props)
-    return props.Mass()
-
-
 def solids_of(s: TopoDS_Shape) -> list[TopoDS_Shape]:
     """The solids in ``s``."""
-    out, ex = [], TopExp_Explorer(s, TopAbs_SOLID)
-    while ex.More():
-        out.append(ex.Current())
-        ex.Next()
-    return out
+    return step_hull.shapes_of(s, TopAbs_SOLID)
 
 
 def _flat(n: csg.Union) -> list[csg.Node]:
@@ -261,7 +248,7 @@ def shape(n: csg.Node, fallbacks: list | None = None) -> TopoDS_Shape:
     if isinstance(n, csg.Move):
         return _moved(shape(n.child, fallbacks), n.frame)
     if isinstance(n, csg.Largest):
-        return max(solids_of(shape(n.child, fallbacks)), key=_volume)
+        return max(solids_of(shape(n.child, fallbacks)), key=step_hull.volume)
     raise ValueError("a mesh has no exact solid: write the part faceted (mesh_solid)")
 
 
@@ -283,7 +270,7 @@ def part_solid(part) -> tuple[TopoDS_Shape, str]:
             unify.Build()
             solid = unify.Shape()
             if BRepCheck_Analyzer(solid).IsValid() and \
-                    abs(_volume(solid) / man.volume() - 1.0) <= VOLUME_TOL:
+                    abs(step_hull.volume(solid) / man.volume() - 1.0) <= VOLUME_TOL:
                 return solid, "exact, polyhedral fillet" if fallbacks else "exact"
     return mesh_solid(man), "faceted"
 

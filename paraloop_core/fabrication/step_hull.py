@@ -42,16 +42,25 @@ SAMPLES = 360
 VOLUME_SLACK = 1e-3
 
 
-def _pnt(p: np.ndarray) -> gp_Pnt:
+def pnt(p: np.ndarray) -> gp_Pnt:
+    """A point ``(3,)`` (mm) for OpenCascade."""
     return gp_Pnt(*map(float, p))
 
 
-def _shapes(s: TopoDS_Shape, kind) -> list[TopoDS_Shape]:
+def shapes_of(s: TopoDS_Shape, kind) -> list[TopoDS_Shape]:
+    """The sub-shapes of ``s`` of type ``kind`` (``TopAbs_SOLID``, ...)."""
     out, ex = [], TopExp_Explorer(s, kind)
     while ex.More():
         out.append(ex.Current())
         ex.Next()
     return out
+
+
+def volume(s: TopoDS_Shape) -> float:
+    """The volume (mm^3) of ``s`` (negative for a solid turned inside out)."""
+    props = GProp_GProps()
+    BRepGProp.VolumeProperties_s(s, props)
+    return props.Mass()
 
 
 def exact_hull(items: tuple) -> TopoDS_Shape | None:
@@ -106,7 +115,7 @@ def _full(loop: list[int] | None, circ: list) -> bool:
 def _band(n: csg.Prism, u0: float, u1: float):
     """The face of the round prism ``n``'s cylinder between the angles ``u0`` and ``u1``."""
     f = n.frame
-    cyl = gp_Cylinder(gp_Ax3(_pnt(f[:, 3]), gp_Dir(*f[:, 2]), gp_Dir(*f[:, 0])), float(n.r0))
+    cyl = gp_Cylinder(gp_Ax3(pnt(f[:, 3]), gp_Dir(*f[:, 2]), gp_Dir(*f[:, 0])), float(n.r0))
     return BRepBuilderAPI_MakeFace(cyl, u0, u1, 0.0, float(n.height)).Face()
 
 
@@ -205,20 +214,20 @@ def _edges(loop: list[int], p, circ, k, circles) -> list[tuple]:
 def _circle(circles: list, c: int) -> gp_Circ:
     n, z = circles[c]
     f = n.frame
-    return gp_Circ(gp_Ax2(_pnt(f[:, 3] + z * f[:, 2]), gp_Dir(*f[:, 2]), gp_Dir(*f[:, 0])),
+    return gp_Circ(gp_Ax2(pnt(f[:, 3] + z * f[:, 2]), gp_Dir(*f[:, 2]), gp_Dir(*f[:, 0])),
                    float(n.r0))
 
 
 def _edge(run: tuple, p: np.ndarray, circles: list):
     if run[0] == "line":
-        return BRepBuilderAPI_MakeEdge(_pnt(p[run[1]]), _pnt(p[run[2]])).Edge()
+        return BRepBuilderAPI_MakeEdge(pnt(p[run[1]]), pnt(p[run[2]])).Edge()
     _, c, _, steps, i, j = run
     if abs(steps) == SAMPLES:  # a whole circle
         e = BRepBuilderAPI_MakeEdge(_circle(circles, c)).Edge()
         return e if steps > 0 else TopoDS.Edge(e.Reversed())
     if steps > 0:
-        return BRepBuilderAPI_MakeEdge(_circle(circles, c), _pnt(p[i]), _pnt(p[j])).Edge()
-    e = BRepBuilderAPI_MakeEdge(_circle(circles, c), _pnt(p[j]), _pnt(p[i])).Edge()
+        return BRepBuilderAPI_MakeEdge(_circle(circles, c), pnt(p[i]), pnt(p[j])).Edge()
+    e = BRepBuilderAPI_MakeEdge(_circle(circles, c), pnt(p[j]), pnt(p[i])).Edge()
     return TopoDS.Edge(e.Reversed())
 
 
@@ -246,10 +255,10 @@ def _face(key: tuple, loop: list[int] | None, p, circ, k, circles):
             return None
         arc = _wire(arcs, p, circles)
         sections = BRepOffsetAPI_ThruSections(False, True)
-        sections.AddVertex(BRepBuilderAPI_MakeVertex(_pnt(p[key[2]])).Vertex())
+        sections.AddVertex(BRepBuilderAPI_MakeVertex(pnt(p[key[2]])).Vertex())
         sections.AddWire(arc)
         sections.Build()
-        faces = _shapes(sections.Shape(), TopAbs_FACE) if sections.IsDone() else []
+        faces = shapes_of(sections.Shape(), TopAbs_FACE) if sections.IsDone() else []
         return faces[0] if len(faces) == 1 else None
     # the cylinder's strip: between the angles of its arc on the first end circle
     first = [r for r in arcs if r[1] == key[1]]
@@ -267,14 +276,13 @@ def _solid(faces: list, sampled_volume: float) -> TopoDS_Shape | None:
     for f in faces:
         sew.Add(f)
     sew.Perform()
-    shells = _shapes(sew.SewedShape(), TopAbs_SHELL)
+    shells = shapes_of(sew.SewedShape(), TopAbs_SHELL)
     if len(shells) != 1 or not BRep_Tool.IsClosed_s(shells[0]):
         return None
     solid = BRepBuilderAPI_MakeSolid(TopoDS.Shell(shells[0])).Solid()
-    props = GProp_GProps()
-    BRepGProp.VolumeProperties_s(solid, props)
-    if props.Mass() < 0:
+    v = volume(solid)
+    if v < 0:
         solid.Reverse()
     ok = BRepCheck_Analyzer(solid).IsValid() and \
-        0.0 <= abs(props.Mass()) / sampled_volume - 1.0 <= VOLUME_SLACK
+        0.0 <= abs(v) / sampled_volume - 1.0 <= VOLUME_SLACK
     return solid if ok else None
