@@ -158,3 +158,13 @@ def test_exact_hull_known_answers():
     solid = step_hull.exact_hull((boss, tip))
     assert solid is not None and BRepCheck_Analyzer(solid).IsValid()
     assert _props(solid)[0] == pytest.approx(np.pi * 25 * (3 + 6 / 3), rel=1e-4)
+
+
+def test_a_fillet_that_does_not_close_is_polyhedral(written, monkeypatch):
+    """Where the exact hull is refused, the part stays exact but its webs are the sampled
+    hull's facets, and says so; the volume still agrees with the mesh."""
+    link = written[0].parts[0]
+    monkeypatch.setattr(step_hull, "exact_hull", lambda items: None)
+    solid, kind = step.part_solid(link)
+    assert kind == "exact, polyhedral fillet" and BRepCheck_Analyzer(solid).IsValid()
+    assert _props(solid)[0] == pytest.approx(link.manifold.volume(), rel=0.01)
