@@ -366,13 +366,8 @@ def plate_part(b: Base, wall_mm: float, segments: int = 96) -> Part:
     up = b.up
     r_rod = b.rod.d_mm / 2
     socket_r, socket_h = r_rod + 2 * wall_mm, SOCKET_D * b.rod.d_mm
-    place = np.eye(4)
-    place[:3, :3] = b.frame
-    place[:3, 3] = b.frame @ np.r_[b.center, b.table]
-    def at(x: float, y: float, z: float) -> np.ndarray:  # a translation (3, 4)
-        return np.column_stack([np.eye(3), [x, y, z]])
-
-    disc = csg.Prism(at(0.0, 0.0, 0.0), b.thickness, b.radius, b.radius, segments)
+    place = np.column_stack([b.frame, b.frame @ np.r_[b.center, b.table]])  # (3, 4)
+    disc = csg.Prism(csg.shift(0.0, 0.0, 0.0), b.thickness, b.radius, b.radius, segments)
     mounts = []
     for a in np.radians([45.0, 135.0, 225.0, 315.0]):
         p = 0.78 * b.radius * np.array([np.cos(a), np.sin(a)])
@@ -380,15 +375,15 @@ def plate_part(b: Base, wall_mm: float, segments: int = 96) -> Part:
         if np.linalg.norm(p - foot) < socket_r + MOUNT_HOLE_MM + 3:
             continue
         x, y = float(p[0]), float(p[1])
-        mounts += [csg.Prism(at(x, y, -1.0), b.thickness + 2, MOUNT_HOLE_MM / 2,
+        mounts += [csg.Prism(csg.shift(x, y, -1.0), b.thickness + 2, MOUNT_HOLE_MM / 2,
                              MOUNT_HOLE_MM / 2, 48),  # the hole and its countersink
-                   csg.Prism(at(x, y, b.thickness - MOUNT_HOLE_MM / 2),
+                   csg.Prism(csg.shift(x, y, b.thickness - MOUNT_HOLE_MM / 2),
                              MOUNT_HOLE_MM / 2 + 0.01, MOUNT_HOLE_MM / 2, MOUNT_HOLE_MM, 48)]
     top = b.table + b.thickness
     d = (b.bottom - b.top) / np.linalg.norm(b.bottom - b.top)
     at_top = b.top + (float(b.top @ up) - top - socket_h) * d
     socket = csg.Trim(csg.prism(at_top, b.bottom, socket_r, parts.SEGMENTS), tuple(up), b.table)
-    tree = csg.Cut(csg.Union((csg.Move(csg.Cut(disc, tuple(mounts)), place[:3, :4]), socket)),
+    tree = csg.Cut(csg.Union((csg.Move(csg.Cut(disc, tuple(mounts)), place), socket)),
                    (csg.prism(at_top - 5 * d, b.bottom + 5 * d, r_rod, parts.SEGMENTS),))
     solid = csg.manifold(tree)
     if parts.pinched(solid) and segments < 102:  # a boolean pinched two vertices onto one

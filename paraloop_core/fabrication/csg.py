@@ -103,6 +103,11 @@ def frame_to(p0: np.ndarray, p1: np.ndarray, roll: np.ndarray | None = None) -> 
     return np.column_stack([x, np.cross(z, x), z, p0])
 
 
+def shift(x: float, y: float, z: float) -> np.ndarray:
+    """``(3, 4)``: the translation by ``(x, y, z)`` (mm)."""
+    return np.column_stack([np.eye(3), [x, y, z]])
+
+
 def prism(p0: np.ndarray, p1: np.ndarray, radius: float, sides: int,
           roll: np.ndarray | None = None) -> Prism:
     """Prism of ``sides`` sides and corner ``radius`` with flat ends at ``p0``, ``p1`` (mm);
