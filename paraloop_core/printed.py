@@ -214,6 +214,9 @@ def export(sol: Solution, opts: Options | None = None, *, rhino: bool = False,
             progress(0.97, "physics check (MuJoCo)")
         report["physics"], more = physics_check(printed, opts, sol.design.drive)
         files += more
+    if progress is not None:
+        progress(0.98, "STEP solids")
+    files += export_files.step_files(printed.assembly, report)  # last: the slowest
     result = json.dumps(result_to_dict(chosen), indent=1, allow_nan=False) + "\n"
     files.append(("result.json", result.encode()))
     files.append(("report.json", export_files.report_json(report)))

@@ -42,7 +42,8 @@ def test_plain_export_writes_the_printed_loop(exported):
     assert parts == {f"link_{i}" for i in range(6)} | {"base_plate", f"rod_cap_{b['rod_joint']}"}
     assert names == {f"{p}.stl" for p in parts} | {
         "paraloop.3mf", "assembly.glb", "animation.glb", "result.json", "report.json",
-        "assembly.md", "assembly.html", "paraloop.3dm", "guide_loop.png", "guide_base.png"} | {
+        "assembly.md", "assembly.html", "paraloop.3dm", "guide_loop.png", "guide_base.png",
+        "parts.step", "assembly.step"} | {
         f"guide_joint_{j}.png" for j in range(6)} | {
         f"paraloop_plate{k}.3mf" for k in range(2, plates + 1)}
     assert f"-> {out}: {len(names)} files;" in stdout and "collision-free" in stdout
@@ -54,6 +55,7 @@ def test_plain_export_writes_the_printed_loop(exported):
         mesh = trimesh.load(out / f"{p['name']}.stl", file_type="stl")
         assert mesh.is_watertight and mesh.volume == pytest.approx(p["volume_cm3"] * 1e3,
                                                                    rel=1e-5)
+        assert p["step"] == "exact"  # no end-effector, no carved body (tests/test_step.py)
     # joints: screws with lock nuts, the grounded one on the rod, each held >= 1.5 d
     kinds = [j["kind"] for j in report["joints"]]
     assert kinds.count("rod") == 1 and kinds.count("m3") == 5

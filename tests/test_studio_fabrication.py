@@ -26,7 +26,8 @@ DESIGNS = Path(__file__).resolve().parent.parent / "assets" / "designs"
 #: what every export zip holds besides the parts' STLs and further plates
 FIXED_FILES = {"paraloop-result.json", "paraloop.3mf", "assembly.glb", "animation.glb",
                "report.json", "result.json", "assembly.md", "assembly.html", "guide_loop.png",
-               "guide_base.png"} | {f"guide_joint_{j}.png" for j in range(6)}
+               "guide_base.png", "parts.step", "assembly.step"} | {
+    f"guide_joint_{j}.png" for j in range(6)}
 
 
 def open_studio(name: str, autosave=None):

@@ -15,7 +15,7 @@ import numpy as np
 
 from paraloop_core.algebra import dq
 from paraloop_core.errors import FabricationError
-from paraloop_core.fabrication import flat, layout, parts, sizing
+from paraloop_core.fabrication import csg, flat, layout, parts, sizing
 from paraloop_core.fabrication.joints import Joint
 from paraloop_core.fabrication.parts import Part
 from paraloop_core.fabrication.profiles import Printer
@@ -35,7 +35,8 @@ class Hardware:
     """A metal piece (not printed): ``role`` (screw, lock nut, thrust washer, rod), the
     ``joint`` whose axis it lies on (-1: the base), ``link`` it moves with for the
     verification (a piece about a joint axis turns with either link: the lower one), its
-    ``solid`` (mm, home) and bounding capsule ``capsule`` ``(2, 3)`` with ``radius``."""
+    ``solid`` (mm, home) evaluated from the tree ``csg``, and bounding capsule ``capsule``
+    ``(2, 3)`` with ``radius``."""
 
     role: str
     joint: int
@@ -43,6 +44,7 @@ class Hardware:
     solid: m3d.Manifold
     capsule: np.ndarray
     radius: float
+    csg: csg.Node | None = None
 
 
 @dataclass(frozen=True)
@@ -80,8 +82,9 @@ def hardware_of(joints: tuple[Joint, ...]) -> tuple[Hardware, ...]:
         for p in j.pieces:
             if p.printed:
                 continue
-            out.append(Hardware(p.role, j.index, j.index, parts.piece_solid(j, p),
-                                np.stack([j.at(p.s0), j.at(p.s1)]), p.radius))
+            node = parts.piece_solid(j, p)
+            out.append(Hardware(p.role, j.index, j.index, csg.manifold(node),
+                                np.stack([j.at(p.s0), j.at(p.s1)]), p.radius, node))
     return tuple(out)
 
 

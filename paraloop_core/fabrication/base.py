@@ -28,12 +28,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
-import manifold3d as m3d
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
 from paraloop_core.algebra import dq, poly
-from paraloop_core.fabrication import parts, profiles
+from paraloop_core.fabrication import csg, parts, profiles
 from paraloop_core.fabrication.assembly import Assembly, Hardware
 from paraloop_core.fabrication.parts import Part
 from paraloop_core.fabrication.profiles import Rod
@@ -367,27 +366,26 @@ def plate_part(b: Base, wall_mm: float, segments: int = 96) -> Part:
     up = b.up
     r_rod = b.rod.d_mm / 2
     socket_r, socket_h = r_rod + 2 * wall_mm, SOCKET_D * b.rod.d_mm
-    place = np.eye(4)
-    place[:3, :3] = b.frame
-    place[:3, 3] = b.frame @ np.r_[b.center, b.table]
-    disc = m3d.Manifold.cylinder(b.thickness, b.radius, b.radius, segments)
+    place = np.column_stack([b.frame, b.frame @ np.r_[b.center, b.table]])  # (3, 4)
+    disc = csg.Prism(csg.shift(0.0, 0.0, 0.0), b.thickness, b.radius, b.radius, segments)
+    mounts = []
     for a in np.radians([45.0, 135.0, 225.0, 315.0]):
         p = 0.78 * b.radius * np.array([np.cos(a), np.sin(a)])
         foot = b.frame[:, :2].T @ b.bottom - b.center
         if np.linalg.norm(p - foot) < socket_r + MOUNT_HOLE_MM + 3:
             continue
-        hole = m3d.Manifold.cylinder(b.thickness + 2, MOUNT_HOLE_MM / 2, MOUNT_HOLE_MM / 2,
-                                     48).translate((float(p[0]), float(p[1]), -1.0))
-        sink = m3d.Manifold.cylinder(MOUNT_HOLE_MM / 2 + 0.01, MOUNT_HOLE_MM / 2,
-                                     MOUNT_HOLE_MM, 48).translate(
-            (float(p[0]), float(p[1]), b.thickness - MOUNT_HOLE_MM / 2))
-        disc = disc - hole - sink
-    solid = disc.transform(place[:3, :4])
+        x, y = float(p[0]), float(p[1])
+        mounts += [csg.Prism(csg.shift(x, y, -1.0), b.thickness + 2, MOUNT_HOLE_MM / 2,
+                             MOUNT_HOLE_MM / 2, 48),  # the hole and its countersink
+                   csg.Prism(csg.shift(x, y, b.thickness - MOUNT_HOLE_MM / 2),
+                             MOUNT_HOLE_MM / 2 + 0.01, MOUNT_HOLE_MM / 2, MOUNT_HOLE_MM, 48)]
     top = b.table + b.thickness
     d = (b.bottom - b.top) / np.linalg.norm(b.bottom - b.top)
     at_top = b.top + (float(b.top @ up) - top - socket_h) * d
-    socket = parts.cylinder(at_top, b.bottom, socket_r).trim_by_plane(tuple(up), b.table)
-    solid = (solid + socket) - parts.cylinder(at_top - 5 * d, b.bottom + 5 * d, r_rod)
+    socket = csg.Trim(csg.prism(at_top, b.bottom, socket_r, parts.SEGMENTS), tuple(up), b.table)
+    tree = csg.Cut(csg.Union((csg.Move(csg.Cut(disc, tuple(mounts)), place), socket)),
+                   (csg.prism(at_top - 5 * d, b.bottom + 5 * d, r_rod, parts.SEGMENTS),))
+    solid = csg.manifold(tree)
     if parts.pinched(solid) and segments < 102:  # a boolean pinched two vertices onto one
         return plate_part(b, wall_mm, segments + 2)  # point: another tessellation
     parts.check_solid(solid, "base plate")
@@ -395,14 +393,15 @@ def plate_part(b: Base, wall_mm: float, segments: int = 96) -> Part:
     caps = np.array([[mid, mid], [at_top, b.bottom]])
     return Part("base_plate", b.link, solid, caps,
                 np.array([np.hypot(b.radius, b.thickness / 2), socket_r]),
-                np.array([-1, -1]), -up, "base")
+                np.array([-1, -1]), -up, "base", tree)
 
 
 def rod_hardware(b: Base, cap_end: np.ndarray) -> Hardware:
     """The whole rod, from inside its cap (``cap_end``, mm) to the plate's underside; it
     reaches beyond its joint's zone, so it is tagged as the grounded link's body (-1)."""
-    return Hardware(b.rod.name, -1, b.link, parts.cylinder(cap_end, b.bottom, b.rod.d_mm / 2),
-                    np.stack([cap_end, b.bottom]), b.rod.d_mm / 2)
+    node = csg.prism(cap_end, b.bottom, b.rod.d_mm / 2, parts.SEGMENTS)
+    return Hardware(b.rod.name, -1, b.link, csg.manifold(node), np.stack([cap_end, b.bottom]),
+                    b.rod.d_mm / 2, node)
 
 
 def to_dict(b: Base, bed_mm: tuple[float, float, float]) -> dict:

@@ -6,6 +6,11 @@
 * ``paraloop.3mf`` (``paraloop_plate<k>.3mf`` for more plates): the same parts laid on their
   print faces and arranged on the printer's bed (:mod:`layout`);
 * ``assembly.glb``: the assembled loop, parts coloured per link, hardware in steel grey;
+* ``parts.step``: every printed part as one solid in the same home pose, exact (cylinders,
+  cones, hexagonal prisms, planes, the fillets' oblique cones) where its :mod:`csg` tree has
+  no mesh in it, else faceted (an end-effector, a carved body); ``assembly.step``: those
+  parts and the metal hardware, named and coloured (:mod:`step`; written last, by
+  :func:`step_files`);
 * ``report.json``: what the program chose and measured (:mod:`printable`), the print layout
   with each part's support, the parts list and the bill of materials.
 """
@@ -108,6 +113,18 @@ def parts_entry(asm: Assembly, meshes: dict[str, trimesh.Trimesh],
              "volume_cm3": meshes[p.name].volume / 1e3,
              "mass_g": meshes[p.name].volume / 1e3 * material.density_g_cm3}
             for p in asm.parts]
+
+
+def step_files(asm: Assembly, report: dict) -> list[tuple[str, bytes]]:
+    """``parts.step`` and ``assembly.step`` (:mod:`step`); each of ``report``'s ``parts``
+    gains ``step``: ``"exact"``, ``"exact, polyhedral fillet"`` or ``"faceted"``."""
+    from paraloop_core.fabrication import step  # OpenCascade: loaded only to write STEP
+
+    colors = {p.name: color_of(-1 if p.role == "base" else p.link) for p in asm.parts}
+    out, kinds = step.step_files(asm, colors, STEEL)
+    for entry in report.get("parts", []):
+        entry["step"] = kinds[entry["name"]]
+    return out
 
 
 def report_json(report: dict) -> bytes:

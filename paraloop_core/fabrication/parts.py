@@ -1,4 +1,5 @@
-"""The printed links (manifold3d solids, mm, home pose, base frame).
+"""The printed links (trees of :mod:`csg` and their manifold3d solids, mm, home pose, base
+frame).
 
 Link i is its bar and the bosses of its two joints (:mod:`joints`):
 
@@ -29,7 +30,7 @@ import numpy as np
 import trimesh
 
 from paraloop_core.errors import FabricationError
-from paraloop_core.fabrication import profiles
+from paraloop_core.fabrication import csg, profiles
 from paraloop_core.fabrication.joints import SEAT_MM, Joint, outward
 from paraloop_core.fabrication.voxelspace import point_segment_distance
 
@@ -48,7 +49,8 @@ class Part:
     with the joint whose zone it belongs to (-1: the body); ``link`` the loop link it moves
     with (-1: the base on the table); ``down`` ``(3,)`` the face laid on the bed (home frame,
     unit; zero: :mod:`layout` chooses); ``role`` ``"link"``, ``"pin"``, ``"cap"``,
-    ``"base"``."""
+    ``"base"``; ``csg`` the tree ``manifold`` was evaluated from (:mod:`csg`; None: only
+    the mesh is known)."""
 
     name: str
     link: int
@@ -58,53 +60,44 @@ class Part:
     joint: np.ndarray
     down: np.ndarray = field(default_factory=lambda: np.zeros(3))
     role: str = "link"
-
-
-def frame_to(p0: np.ndarray, p1: np.ndarray, roll: np.ndarray | None = None) -> np.ndarray:
-    """``(3, 4)`` affine map taking the z axis segment ``[0, |p1 - p0|]`` onto ``[p0, p1]``;
-    its x axis along ``roll`` (projected off the segment) when given."""
-    d = np.asarray(p1, float) - p0
-    z = d / np.linalg.norm(d)
-    ref = np.asarray(roll, float) if roll is not None else \
-        np.array([1.0, 0, 0]) if abs(z[0]) < 0.9 else np.array([0, 1.0, 0])
-    x = ref - (ref @ z) * z
-    if np.linalg.norm(x) < 1e-9:
-        x = np.cross(z, [1.0, 0, 0] if abs(z[0]) < 0.9 else [0, 1.0, 0])
-    x /= np.linalg.norm(x)
-    return np.column_stack([x, np.cross(z, x), z, p0])
+    csg: csg.Node | None = None
 
 
 def cylinder(p0: np.ndarray, p1: np.ndarray, radius: float, segments: int = SEGMENTS,
              roll: np.ndarray | None = None) -> m3d.Manifold:
     """Prism of ``segments`` sides (a cylinder for many) of corner ``radius`` with flat ends
     at ``p0``, ``p1`` (mm); with ``roll`` a corner points along it."""
-    h = float(np.linalg.norm(np.asarray(p1, float) - p0))
-    return m3d.Manifold.cylinder(h, radius, radius, segments).transform(frame_to(p0, p1, roll))
+    return csg.manifold(csg.prism(p0, p1, radius, segments, roll))
 
 
-def hex_bar(p0: np.ndarray, p1: np.ndarray, radius: float, down: np.ndarray) -> m3d.Manifold:
+def hex_node(p0: np.ndarray, p1: np.ndarray, radius: float, down: np.ndarray) -> csg.Prism:
     """Regular hexagonal prism of corner ``radius`` from ``p0`` to ``p1`` with a flat face
     whose outward normal is ``down`` (projected off the bar)."""
     d = np.asarray(p1, float) - p0
     u = d / np.linalg.norm(d)
     n = np.asarray(down, float) - (np.asarray(down, float) @ u) * u
-    n = n / np.linalg.norm(n) if np.linalg.norm(n) > 1e-9 else frame_to(p0, p1)[:, 0]
+    n = n / np.linalg.norm(n) if np.linalg.norm(n) > 1e-9 else csg.frame_to(p0, p1)[:, 0]
     # manifold's hexagon has a corner on +x: turn it by 30 deg so a face normal is on +x
     corner = np.cos(np.pi / 6) * n + np.sin(np.pi / 6) * np.cross(u, n)
-    return cylinder(p0, p1, radius, 6, corner)
+    return csg.prism(p0, p1, radius, 6, corner)
 
 
-def _axis(j: Joint, s0: float, s1: float, r: float, sides: int = SEGMENTS) -> m3d.Manifold:
-    return cylinder(j.at(s0), j.at(s1), r, sides)
+def hex_bar(p0: np.ndarray, p1: np.ndarray, radius: float, down: np.ndarray) -> m3d.Manifold:
+    """:func:`hex_node` as a manifold."""
+    return csg.manifold(hex_node(p0, p1, radius, down))
 
 
-def boss(j: Joint, upper: bool, n: int = SEGMENTS) -> m3d.Manifold:
+def _axis(j: Joint, s0: float, s1: float, r: float, sides: int = SEGMENTS) -> csg.Prism:
+    return csg.prism(j.at(s0), j.at(s1), r, sides)
+
+
+def boss(j: Joint, upper: bool, n: int = SEGMENTS) -> csg.Prism:
     """The boss of link j (``upper`` False) or link j+1 at joint ``j``."""
     s0, s1 = j.upper if upper else j.lower
     return _axis(j, s0, s1, j.boss_radius, n)
 
 
-def zone_cut(j: Joint, upper: bool, c: float, n: int = SEGMENTS) -> m3d.Manifold:
+def zone_cut(j: Joint, upper: bool, c: float, n: int = SEGMENTS) -> csg.Prism:
     """What a link's body loses at joint ``j``: within ``reach + c + eps`` of the axis, on the
     neighbour's side of the split and on past the joint's far end (the neighbour's boss and
     hardware, with ``c`` of room)."""
@@ -115,7 +108,7 @@ def zone_cut(j: Joint, upper: bool, c: float, n: int = SEGMENTS) -> m3d.Manifold
     return _axis(j, j.split - j.gap / 2, hi + c + 1.0, r, n)
 
 
-def outer_cut(j: Joint, upper: bool, c: float, far: float, n: int = SEGMENTS) -> m3d.Manifold:
+def outer_cut(j: Joint, upper: bool, c: float, far: float, n: int = SEGMENTS) -> csg.Prism:
     """What a link's body loses past its boss's outer face at joint ``j``: within the boss
     radius plus ``c`` of the axis, ``far`` mm on (a bar's end standing out past the face)."""
     r = j.boss_radius + c + EPS_MM
@@ -124,7 +117,7 @@ def outer_cut(j: Joint, upper: bool, c: float, far: float, n: int = SEGMENTS) ->
     return _axis(j, j.lower[0] - far, j.lower[0], r, n)
 
 
-def holes(j: Joint, upper: bool, far: float, n: int = SEGMENTS) -> m3d.Manifold:
+def holes(j: Joint, upper: bool, far: float, n: int = SEGMENTS) -> csg.Union:
     """Bore and, for the grounding rod, the way out, of one side of joint ``j``, with room for
     the hardware outside the bosses' faces; ``far`` (mm) how far past the joint that room
     must run to leave any bar end."""
@@ -142,7 +135,7 @@ def holes(j: Joint, upper: bool, far: float, n: int = SEGMENTS) -> m3d.Manifold:
                 cuts.append(_axis(j, p.s0 - j.gap if beyond else p.s0 - far,
                                   p.s1 + far if beyond else p.s1 + j.gap,
                                   p.radius + j.gap + EPS_MM, n))
-    return m3d.Manifold.batch_boolean(cuts, m3d.OpType.Add)
+    return csg.Union(tuple(cuts))
 
 
 def fillet_length(j: Joint, radius: float) -> float:
@@ -151,14 +144,14 @@ def fillet_length(j: Joint, radius: float) -> float:
 
 
 def fillet(j: Joint, upper: bool, bar: tuple[np.ndarray, np.ndarray], radius: float,
-           down: np.ndarray, n: int = SEGMENTS) -> m3d.Manifold:
+           down: np.ndarray, n: int = SEGMENTS) -> csg.Hull:
     """Hull of a boss and the first ``B - R`` mm of the bar (``bar`` = (joint point, other
     end)) that meets it: the web that spreads the bar's load into the boss."""
     p0, p1 = bar
     length = float(np.linalg.norm(p1 - p0))
     f = min(fillet_length(j, radius), 0.5 * length)
-    stub = hex_bar(p0, p0 + (p1 - p0) * (f / length), radius, down)
-    return m3d.Manifold.batch_hull([boss(j, upper, n), stub])
+    stub = hex_node(p0, p0 + (p1 - p0) * (f / length), radius, down)
+    return csg.Hull((boss(j, upper, n), stub))
 
 
 def link_part(i: int, bars: np.ndarray, radius: float, down: np.ndarray,
@@ -174,30 +167,30 @@ def link_part(i: int, bars: np.ndarray, radius: float, down: np.ndarray,
     solids (fewer for trial parts). Raises :class:`FabricationError` when the cuts leave it
     in pieces."""
     lower, upper = joints[i], joints[(i - 1) % 6]
-    body = m3d.Manifold.batch_boolean([hex_bar(p0, p1, radius, down) for p0, p1 in bars],
-                                      m3d.OpType.Add)
+    body = csg.Union(tuple(hex_node(p0, p1, radius, down) for p0, p1 in bars))
     caps = [(p0, p1, radius, -1) for p0, p1 in bars]
     if extra is not None:
-        body = body + extra
+        body = csg.Union((body, csg.Mesh(extra)))
         caps += list(extra_capsules)
     n = segments
-    webs = [fillet(upper, True, (bars[0][0], bars[0][1]), radius, down, n),
-            fillet(lower, False, (bars[-1][1], bars[-1][0]), radius, down, n)]
-    body = m3d.Manifold.batch_boolean([body, *webs], m3d.OpType.Add)
-    body = body - zone_cut(lower, False, printer_c, n) - zone_cut(upper, True, printer_c, n)
-    body = m3d.Manifold.batch_boolean([body, boss(lower, False, n), boss(upper, True, n)],
-                                      m3d.OpType.Add)
+    webs = (fillet(upper, True, (bars[0][0], bars[0][1]), radius, down, n),
+            fillet(lower, False, (bars[-1][1], bars[-1][0]), radius, down, n))
+    body = csg.Cut(csg.Union((body, *webs)), (zone_cut(lower, False, printer_c, n),
+                                                zone_cut(upper, True, printer_c, n)))
+    body = csg.Union((body, boss(lower, False, n), boss(upper, True, n)))
     # past each boss's outer face: a bar's end standing out is trimmed to the face (clean
     # faces for the head and the nut) unless the bar itself leaves that way, then the holes
     # run out through it (and the grounding rod's through anything of its own link)
     ends = ((lower, False, bars[-1][0] - bars[-1][1]), (upper, True, bars[0][1] - bars[0][0]))
+    cuts = []
     for j, up, vec in ends:
         away = j.w if up else -j.w
         if outward(vec, away, radius, j.boss_radius + printer_c + EPS_MM) <= radius + 1.0:
-            body = body - outer_cut(j, up, printer_c, radius + 1.0, n)
+            cuts.append(outer_cut(j, up, printer_c, radius + 1.0, n))
         out = 3.0 * radius + 10.0 if j.kind == "rod" else \
             outward(vec, away, radius, j.reach + EPS_MM) + 1.0
-        body = body - holes(j, up, out, n)
+        cuts.append(holes(j, up, out, n))
+    body = csg.Cut(body, tuple(cuts))
     # the print flat: nothing past the bar's down face (or ``lift`` below it)
     face = np.asarray(down, float)
     level = float(np.max(bars.reshape(-1, 3) @ face)) + radius * np.sqrt(3.0) / 2
@@ -206,16 +199,17 @@ def link_part(i: int, bars: np.ndarray, radius: float, down: np.ndarray,
         extra.to_mesh().vert_properties[:, :3], float) @ face)) <= level + float(lift or 0.0)
     if lift is not None and clear:
         level += float(lift)
-        body = body.trim_by_plane(tuple(-face), -level)
-    body = _one_piece(body, i)
+        body = csg.Trim(body, tuple(-face), -level)
+    solid = _one_piece(csg.manifold(body), i)
     for j, up in ((lower, False), (upper, True)):
         s0, s1 = j.upper if up else j.lower
         # the boss and its fillet: within max(B, f + R) of the pin's points it spans
         reach = max(j.boss_radius, fillet_length(j, radius) + radius)
         caps.append((j.at(min(s0, 0.0 if not up else j.length)),
                      j.at(max(s1, 0.0 if not up else j.length)), reach, j.index))
-    return Part(f"link_{i}", i, body, np.array([[c[0], c[1]] for c in caps]),
-                np.array([c[2] for c in caps]), np.array([c[3] for c in caps]), face, "link")
+    return Part(f"link_{i}", i, solid, np.array([[c[0], c[1]] for c in caps]),
+                np.array([c[2] for c in caps]), np.array([c[3] for c in caps]), face, "link",
+                csg.Largest(body))
 
 
 def _one_piece(body: m3d.Manifold, link: int) -> m3d.Manifold:
@@ -224,19 +218,15 @@ def _one_piece(body: m3d.Manifold, link: int) -> m3d.Manifold:
     if body.status() != m3d.Error.NoError or body.is_empty():
         raise FabricationError(f"link {link} is not a valid solid ({body.status()})",
                                "not-watertight")
-    pieces = body.decompose()
-    if len(pieces) == 1:
-        return body
-    vols = np.array([p.volume() for p in pieces])
-    keep = pieces[int(np.argmax(vols))]
-    if np.sort(vols)[-2] > 0.02 * vols.max():
-        raise FabricationError(f"link {link} falls apart into {len(pieces)} pieces between its "
+    keep, vols = csg.largest(body)
+    if len(vols) > 1 and np.sort(vols)[-2] > 0.02 * vols.max():
+        raise FabricationError(f"link {link} falls apart into {len(vols)} pieces between its "
                                "joints (a bar leaning over its pin is cut through)",
                                "falls-apart")
     return keep
 
 
-def piece_solid(j: Joint, p: profiles.Fastener | object) -> m3d.Manifold:
+def piece_solid(j: Joint, p: profiles.Fastener | object) -> csg.Prism:
     """A joint piece (:class:`joints.Piece`) as a solid: a cylinder, the nut a hexagon."""
     return _axis(j, p.s0, p.s1, p.radius, p.sides or SEGMENTS)
 
@@ -252,8 +242,8 @@ def piece_parts(joints: tuple[Joint, ...]) -> list[Part]:
                 axle = next(q for q in j.pieces if q.role in ("pin", "rod"))
                 hole = j.axle_d / 2 - (profiles.PRINTED_CAP_PRESS_MM / 2
                                        if p.role == "pin cap" else -0.05)
-                solid = solid - _axis(j, max(p.s0, axle.s0) - EPS_MM,
-                                      min(p.s1, axle.s1) + EPS_MM, hole)
+                solid = csg.Cut(solid, (_axis(j, max(p.s0, axle.s0) - EPS_MM,
+                                              min(p.s1, axle.s1) + EPS_MM, hole),))
             name = f"{p.role.replace(' ', '_')}_{j.index}" + (f"_{k}" if k > 1 else "")
             # a rod cap is glued on the rod: rigid with the grounded link; the others turn
             # about the axis with either link (the lower one, by convention)
@@ -261,9 +251,9 @@ def piece_parts(joints: tuple[Joint, ...]) -> list[Part]:
             # a cap prints on its closed end, the hole up; a pin on its side (export)
             beyond = p.s0 >= j.length / 2
             down = np.asarray(j.w, float) * (1.0 if beyond else -1.0)
-            out.append(Part(name, link, solid, np.array([[j.at(p.s0), j.at(p.s1)]]),
-                            np.array([p.radius]), np.array([j.index]), down,
-                            p.role.split()[-1]))
+            out.append(Part(name, link, csg.manifold(solid),
+                            np.array([[j.at(p.s0), j.at(p.s1)]]), np.array([p.radius]),
+                            np.array([j.index]), down, p.role.split()[-1], solid))
     return out
 
 
