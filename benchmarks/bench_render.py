@@ -59,7 +59,7 @@ def synthetic() -> None:
                      lambda: render.render_image(items, labels, lines, view)),
                     ("PNG bytes + labels", lambda: render.render(items, labels, lines, view)),
                     ("coverage 200 x 150 (view choice)",
-                     lambda: render.coverage(items, View(size=(200, 150), supersample=1)))):
+                     lambda: render.Coverage(items).seen(View(size=(200, 150), supersample=1)))):
         wall, cpu = best_of(f)
         print(f"  {name:34s} {wall * 1e3:7.1f} ms wall {cpu * 1e3:7.1f} ms cpu")
     cam = render.camera(view, np.concatenate([it.mesh.vertices for it in items]))

@@ -224,8 +224,8 @@ def test_snap_moves_a_hidden_anchor_onto_its_item():
 
 
 def test_coverage_names_the_item_seen():
-    who = render.coverage([Item(box((0, 0, 0)), RED), Item(box((3, 0, 0)), BLUE)],
-                          View(size=(120, 60), direction=(0, 0, 1), up=(0, 1, 0)))
+    who, _ = render.Coverage([Item(box((0, 0, 0)), RED), Item(box((3, 0, 0)), BLUE)]).seen(
+        View(size=(120, 60), direction=(0, 0, 1), up=(0, 1, 0)))
     assert who.shape == (60, 120)
     assert set(np.unique(who)) == {-1, 0, 1}
     assert who[30, 20] == 0 and who[30, 100] == 1

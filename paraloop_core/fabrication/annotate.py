@@ -17,7 +17,9 @@ by length along the picture; arrows with a white halo.
 from __future__ import annotations
 
 import functools
+import importlib.util
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 from PIL import ImageDraw, ImageFont
@@ -128,15 +130,16 @@ def place_labels(anchors: np.ndarray, sizes: np.ndarray, size: tuple[int, int],
 
 @functools.lru_cache(maxsize=8)
 def font(px: int) -> ImageFont.FreeTypeFont | ImageFont.ImageFont:
-    """Bold DejaVu Sans of ``px`` pixels (Pillow's default font if it cannot be found)."""
-    try:
-        from matplotlib import font_manager
-
-        path = font_manager.findfont(font_manager.FontProperties(family="DejaVu Sans",
-                                                                 weight="bold"))
-        return ImageFont.truetype(path, px)
-    except (ImportError, OSError, ValueError):
-        return ImageFont.load_default(px)
+    """Bold DejaVu Sans of ``px`` pixels, matplotlib's copy found without importing
+    matplotlib (Pillow's default font if it cannot be found)."""
+    spec = importlib.util.find_spec("matplotlib")
+    if spec is not None and spec.origin is not None:
+        path = Path(spec.origin).parent / "mpl-data" / "fonts" / "ttf" / "DejaVuSans-Bold.ttf"
+        try:
+            return ImageFont.truetype(str(path), px)
+        except OSError:
+            pass
+    return ImageFont.load_default(px)
 
 
 def _pad(f) -> tuple[float, float]:

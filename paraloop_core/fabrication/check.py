@@ -24,6 +24,7 @@ fast turn gets its share) the moving group is placed by the relative link pose (
 
 from __future__ import annotations
 
+import functools
 import itertools
 import time
 from collections.abc import Callable
@@ -46,6 +47,8 @@ Progress = Callable[[float, str], None]
 #: of refinement.
 MAX_EXACT_CHECKS = 3000
 REFINE_ROUNDS = 8
+#: How far (mm) the gap between the two links of one joint is measured (about the joint).
+ZONE_SEARCH = 2.0
 
 
 @dataclass(frozen=True)
@@ -78,10 +81,6 @@ def _outside(asm: Assembly, joint: int, pieces: list[_Piece], w: m3d.Manifold
             caps = trimmed(asm, joint, q.caps, q.radii, q.tags)[keep]
             out.append(_Piece(q.solid - w, caps, q.radii[keep], q.tags[keep]))
     return out
-
-
-def _united(pieces: list[_Piece]) -> m3d.Manifold:
-    return m3d.Manifold.batch_boolean([q.solid for q in pieces], m3d.OpType.Add)
 
 
 def trimmed(asm: Assembly, j: int, caps: np.ndarray, radii: np.ndarray, tags: np.ndarray
@@ -124,15 +123,27 @@ def zone(asm: Assembly, j: int, grow: float = 0.0) -> m3d.Manifold:
     return parts.cylinder(jt.at(lo - e), jt.at(hi + e), jt.reach + e)
 
 
-def zone_hulls(asm: Assembly, j: int) -> tuple[m3d.Manifold, m3d.Manifold]:
-    """Solids of revolution holding each side's material inside :func:`zone` (link j's: up to
-    the split; link j+1's: from it)."""
+def zone_hulls(asm: Assembly, j: int) -> tuple[np.ndarray, float]:
+    """Axes ``(2, 2, 3)`` and radius of the solids of revolution (cylinders) holding each
+    side's material inside :func:`zone` (link j's: up to the split; link j+1's: from it)."""
     jt = asm.joints[j]
     lo, hi = jt.extent
     e = parts.EPS_MM / 2
-    r = jt.reach + e
-    return (parts.cylinder(jt.at(lo - e), jt.at(jt.split - jt.gap / 2), r),
-            parts.cylinder(jt.at(jt.split + jt.gap / 2), jt.at(hi + e), r))
+    return (np.array([[jt.at(lo - e), jt.at(jt.split - jt.gap / 2)],
+                      [jt.at(jt.split + jt.gap / 2), jt.at(hi + e)]]), jt.reach + e)
+
+
+def _zone_gap(axis: np.ndarray, radius: float, out: list[_Piece],
+              solid: Callable[[], m3d.Manifold]) -> float:
+    """Exact gap (capped at :data:`ZONE_SEARCH`) between one side's hull (a cylinder about
+    ``axis`` ``(2, 3)``) and the other side's material outside the zone (``solid()``); the
+    cap at once where the capsules of those pieces ``out`` keep farther from the hull's."""
+    hull = (axis[None], np.array([radius]))
+    bound = min((float(_capsule_gap(hull, (q.caps, q.radii), np.eye(4)[None])[0])
+                 for q in out), default=np.inf)
+    if bound > ZONE_SEARCH + 1e-6:  # the capsules contain the pieces: nothing within reach
+        return ZONE_SEARCH
+    return parts.cylinder(axis[0], axis[1], radius).min_gap(solid(), ZONE_SEARCH)
 
 
 def _mm_poses(asm: Assembly, u: np.ndarray) -> np.ndarray:
@@ -149,6 +160,21 @@ def _capsule_gap(ca: tuple, cb: tuple, rel: np.ndarray) -> np.ndarray:
     return (d - ca[1][None, :, None] - cb[1][None, None, :]).min(axis=(1, 2))
 
 
+def _piece_bounds(pa: list[_Piece], pb: list[_Piece], rel: np.ndarray) -> np.ndarray:
+    """:func:`_capsule_gap` of every pair of pieces of ``pa`` and ``pb`` (b moved by ``rel``
+    ``(T, 4, 4)``): ``(A, B, T)``, all capsules in one pass."""
+    seg_b = np.einsum("tij,nkj->tnki", rel[:, :3, :3], np.concatenate([q.caps for q in pb])) \
+        + rel[:, None, None, :3, 3]
+    ca = np.concatenate([q.caps for q in pa])
+    d = segment_distance(ca[None, :, None, 0], ca[None, :, None, 1],
+                         seg_b[:, None, :, 0], seg_b[:, None, :, 1])
+    d -= np.concatenate([q.radii for q in pa])[None, :, None]
+    d -= np.concatenate([q.radii for q in pb])[None, None, :]
+    starts = [np.cumsum([0] + [len(q.caps) for q in pieces])[:-1] for pieces in (pa, pb)]
+    d = np.minimum.reduceat(np.minimum.reduceat(d, starts[0], axis=1), starts[1], axis=2)
+    return d.transpose(1, 2, 0)
+
+
 def _affine(m: np.ndarray) -> list:
     return [list(map(float, row)) for row in m[:3, :4]]
 
@@ -161,8 +187,7 @@ def _gaps(asm: Assembly, a: int, b: int, pa: list[_Piece], pb: list[_Piece],
     ``below`` (a group's plate or hardware is not measured where only a bar comes close)."""
     poses = _mm_poses(asm, u)
     rel = np.linalg.inv(poses[:, a]) @ poses[:, b]
-    lbs = np.array([[_capsule_gap((x.caps, x.radii), (y.caps, y.radii), rel) for y in pb]
-                    for x in pa])  # (A, B, T)
+    lbs = _piece_bounds(pa, pb, rel)  # (A, B, T)
     lb = lbs.min(axis=(0, 1))
     gap, vol = lb.copy(), np.zeros(len(u))
     for s in np.nonzero(lb < below)[0]:
@@ -227,6 +252,11 @@ def verify(asm: Assembly, samples: int = 720, progress: Progress | None = None) 
     t0 = time.perf_counter()
     info = solid_info(asm)
     groups = [_group(asm, i) for i in range(6)]
+
+    @functools.cache
+    def united(link: int) -> m3d.Manifold:  # a link's group as one solid, built once
+        return m3d.Manifold.batch_boolean([q.solid for q in groups[link]], m3d.OpType.Add)
+
     jf = asm.joint_factors
     fast = poly.t_to_param(poly.cycle_parameters(
         jf[:3, 0], np.linalg.norm(jf[:3, 1:4], axis=-1), max(samples // 3, 8))) % 1.0
@@ -242,15 +272,15 @@ def verify(asm: Assembly, samples: int = 720, progress: Progress | None = None) 
         required = 0.0 if joint is not None else float(need[a, b])
         if joint is not None:
             w = zone(asm, joint)
-            lo_hull, up_hull = zone_hulls(asm, joint)
-            lo, up = (a, b) if joint == a else (b, a)
-            lo_s, up_s = _united(groups[lo]), _united(groups[up])
+            pa, pb = _outside(asm, joint, pa, w), _outside(asm, joint, pb, w)
+            axes, radius = zone_hulls(asm, joint)
+            (lo, lo_out), (up, up_out) = ((a, pa), (b, pb)) if joint == a else ((b, pb), (a, pa))
             jt = asm.joints[joint]
             poly_err = (jt.reach + parts.EPS_MM) * (1.0 - np.cos(np.pi / parts.SEGMENTS))
-            raw = min(lo_hull.min_gap(up_s - w, 2.0), up_hull.min_gap(lo_s - w, 2.0))
-            const = raw - poly_err if raw < 2.0 else np.inf
-            joint_gaps.append(_printed(asm, a).min_gap(_printed(asm, b), 2.0))
-            pa, pb = _outside(asm, joint, pa, w), _outside(asm, joint, pb, w)
+            raw = min(_zone_gap(axes[0], radius, up_out, lambda up=up, w=w: united(up) - w),
+                      _zone_gap(axes[1], radius, lo_out, lambda lo=lo, w=w: united(lo) - w))
+            const = raw - poly_err if raw < ZONE_SEARCH else np.inf
+            joint_gaps.append(_printed(asm, a).min_gap(_printed(asm, b), ZONE_SEARCH))
         # exact gaps only where the capsules do not prove the required gap by themselves
         search = required + 0.05
         cb = np.concatenate([q.caps for q in pb])
@@ -278,7 +308,7 @@ def verify(asm: Assembly, samples: int = 720, progress: Progress | None = None) 
             "min_gap_mm": float(min(gap[i_min], const)), "at_u": float(u[i_min]),
             "continuous_min_gap_mm": float(min(np.min(gap - delta), const)),
             "required_gap_mm": required,
-            "joint_zone_gap_mm": float(min(const, 2.0)) if joint is not None else None,
+            "joint_zone_gap_mm": float(min(const, ZONE_SEARCH)) if joint is not None else None,
             "max_step_motion_mm": float(delta.max()), "samples": int(len(u)),
             "exact_checks": n_exact, "colliding_samples": int(np.sum(vol > 1e-9)),
             "max_intersection_mm3": float(vol.max())})

@@ -91,11 +91,11 @@ class Scene:
         return render.render(self.items, self.labels, self.lines, self.view)
 
 
-def _seen_score(items: Sequence[Item], view: View, targets: Sequence[int]) -> float:
+def _seen_score(cover: render.Coverage, view: View, targets: Sequence[int]) -> float:
     """How well ``view`` shows ``targets``: log(1 + pixels where an item is seen), the least
     of the targets' plus a fifth of the mean over all items."""
-    who = render.coverage(items, view)
-    seen = np.log1p(np.bincount(who[who >= 0].ravel(), minlength=len(items)))
+    who, _ = cover.seen(view)
+    seen = np.log1p(np.bincount(who[who >= 0].ravel(), minlength=len(cover.geometry)))
     return float(seen[list(targets)].min(initial=0.0) + 0.2 * seen.mean())
 
 
@@ -105,13 +105,13 @@ def loop_scene(pieces: Sequence[Piece], joints: Sequence[Joint], size=SIZE) -> S
         raise FabricationError("a loop picture needs pieces", "bad-parameters")
     items = tuple(Item(p.mesh, p.color) for p in pieces)
     best, eye = -np.inf, None
-    verts = np.concatenate([it.mesh.vertices for it in items])
+    cover = render.Coverage(items)
     points = np.array([j.point for j in joints], float).reshape(-1, 3)
     for el in (20.0, 50.0):
         for az in range(0, 360, 30):
             probe = View(size=PROBE, azimuth_deg=az, elevation_deg=el, supersample=1)
-            who = render.coverage(items, probe)
-            xy = render.camera(probe, verts, 1).project(points)[:, :2]
+            who, cam = cover.seen(probe)
+            xy = cam.project(points)[:, :2]
             col = np.clip(xy[:, 0].astype(int), 0, PROBE[0] - 1)
             row = np.clip(xy[:, 1].astype(int), 0, PROBE[1] - 1)
             # a joint is seen when its own piece (or nothing) is what shows at its point
@@ -172,6 +172,7 @@ def exploded_scene(groups: Sequence[tuple[Sequence[Piece], float]], joint: Joint
     u /= np.linalg.norm(u)
     v = np.cross(w, u)
     best, pick = -np.inf, None
+    cover = render.Coverage(items)
     for tilt in (15.0, -15.0):
         for phi in np.radians(np.arange(0, 360, 45)):
             eye = np.cos(np.radians(tilt)) * (np.cos(phi) * u + np.sin(phi) * v) \
@@ -179,7 +180,7 @@ def exploded_scene(groups: Sequence[tuple[Sequence[Piece], float]], joint: Joint
             up = np.cross(eye, w)
             ring = _frame(joint.point, w, np.cross(w, eye), lo - margin, hi + margin, margin)
             probe = View(size=PROBE, direction=tuple(eye), up=tuple(up), fit=ring, supersample=1)
-            score = _seen_score(items, probe, targets) + 0.3 * eye[2]
+            score = _seen_score(cover, probe, targets) + 0.3 * eye[2]
             if score > best:
                 best, pick = score, (eye, up, ring)
     eye, up, ring = pick
@@ -192,8 +193,7 @@ def exploded_scene(groups: Sequence[tuple[Sequence[Piece], float]], joint: Joint
     lines: list[Line3 | Arrow3] = [Line3(at + (lo - margin) * w, at + (hi + margin) * w,
                                          JOINT_COLOR, dashed=True, width=2.0)]
     probe = View(size=PROBE, direction=tuple(eye), up=tuple(up), fit=ring, supersample=1)
-    who = render.coverage(items, probe)
-    cam = render.camera(probe, np.concatenate([it.mesh.vertices for it in items]), 1)
+    who, cam = cover.seen(probe)
     for off in offsets:
         if off == 0.0:
             continue

@@ -233,12 +233,18 @@ class _Layer:
     edges: np.ndarray
 
 
-def _layer(item: Item, cam: Camera, crease_cos: float) -> _Layer:
-    v = np.asarray(item.mesh.vertices, float)
-    f = np.asarray(item.mesh.faces, np.int64)
+def _geometry(mesh: trimesh.Trimesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Vertices ``(V, 3)``, faces ``(F, 3)`` and unit face normals ``(F, 3)`` of ``mesh``."""
+    v = np.asarray(mesh.vertices, float)
+    f = np.asarray(mesh.faces, np.int64)
     tri = v[f]
     n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+    return v, f, n
+
+
+def _layer(item: Item, cam: Camera, crease_cos: float) -> _Layer:
+    v, f, n = _geometry(item.mesh)
     eye = cam.basis[2]
     front = n @ eye > 0.0
     key = np.asarray(KEY_LIGHT) @ cam.basis  # above-left of the eye
@@ -297,16 +303,31 @@ def _opaque(items: Sequence[Item], cam: Camera, crease_cos: float
     return keys, rgb, owner, layers
 
 
-def coverage(items: Sequence[Item], view: View) -> np.ndarray:
-    """Which item is seen at each pixel, ``(H, W)`` ``int`` (-1: background), at the picture
-    size (no supersampling; every item taken as opaque): for choosing views."""
-    _check(items, (), ())
-    cam = camera(view, _all_points(items, ()), 1)
-    keys, _, owner, _ = _opaque([Item(i.mesh, i.color, 1.0, False) for i in items], cam, 1.0)
-    seen = keys != raster.EMPTY
-    out = np.full(keys.shape, -1, np.int64)
-    out[seen] = owner[keys[seen] & raster.FACE_MASK]
-    return out.reshape(cam.shape)
+class Coverage:
+    """Which of ``items`` is seen at each pixel of a view (every item taken as opaque, no
+    supersampling): for choosing views. The items' geometry is taken once, so that many views
+    of one scene cost a projection and a z-buffer each."""
+
+    def __init__(self, items: Sequence[Item]):
+        _check(items, (), ())
+        self.geometry = [_geometry(it.mesh) for it in items]
+        self.points = _all_points(items, ())
+
+    def seen(self, view: View) -> tuple[np.ndarray, Camera]:
+        """``(who, camera)``: the item seen at each pixel ``(H, W)`` ``int`` (-1: background)
+        at the picture size of ``view``, and the camera that drew it."""
+        cam = camera(view, self.points, 1)
+        xy, depth = [], []
+        for v, f, n in self.geometry:  # each item's front faces, keyed in order
+            s = cam.project(v)[f[n @ cam.basis[2] > 0.0]]
+            xy.append(s[..., :2])
+            depth.append(s[..., 2])
+        owner = np.repeat(np.arange(len(xy)), [len(a) for a in xy])
+        keys = raster.rasterize(np.concatenate(xy), np.concatenate(depth), cam.shape)
+        seen = keys != raster.EMPTY
+        out = np.full(keys.shape, -1, np.int64)
+        out[seen] = owner[keys[seen] & raster.FACE_MASK]
+        return out.reshape(cam.shape), cam
 
 
 def render_image(items: Sequence[Item], labels: Sequence[Label] = (),
