@@ -223,12 +223,23 @@ def _plate(com_xy: np.ndarray, foot: np.ndarray, socket_r: float, step: float
     g = np.linspace(-0.2, 1.2, 29)
     cx, cy = np.meshgrid(lo[0] + g * (hi[0] - lo[0] + 1e-9), lo[1] + g * (hi[1] - lo[1] + 1e-9))
     cand = np.stack([cx.ravel(), cy.ravel()], 1)
-    need_com = (np.linalg.norm(com_xy[None] - cand[:, None], axis=2).max(1) + step) / \
-        (1 - 2 * MARGIN)
-    need_foot = np.linalg.norm(foot - cand, axis=1) + socket_r + 2.0
-    need = np.maximum(np.maximum(need_com, need_foot), 0.25 * span)
-    k = int(np.argmin(need))
-    return cand[k], float(need[k])
+    floor = np.maximum(np.linalg.norm(foot - cand, axis=1) + socket_r + 2.0, 0.25 * span)
+
+    def need(idx: np.ndarray, points: np.ndarray) -> np.ndarray:
+        # radius needed at centres cand[idx] for points: the farthest point by the largest
+        # square (sqrt is monotone), per component (a reduction over pairs is slow)
+        d = points[None] - cand[idx, None]
+        far = np.sqrt((d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1]).max(1))
+        return np.maximum((far + step) / (1 - 2 * MARGIN), floor[idx])
+
+    # a quarter of the points bounds every centre's need from below; the exact need only
+    # where that bound does not exceed the best of the likeliest centres: the same argmin
+    low = need(np.arange(len(cand)), com_xy[::4])
+    best = need(np.argsort(low, kind="stable")[:16], com_xy).min()
+    todo = np.flatnonzero(low <= best)
+    exact = need(todo, com_xy)
+    k = int(np.argmin(exact))
+    return cand[todo[k]], float(exact[k])
 
 
 @dataclass(frozen=True)

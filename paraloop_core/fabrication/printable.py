@@ -256,23 +256,23 @@ def _ground(asm: Assembly, opts: Options) -> tuple[Assembly, base.Base | None, l
                             f"{ranked[0].link} instead")
         ranked = mine or ranked
     # best first: both links flat with the rod's cap, the cap on support, flat without the
-    # cap (the closed loop holds the joint), neither
-    found: dict[tuple[bool, bool], tuple] = {}
-    for b in ranked[:GROUND_TRIES]:
-        for rod, cap in ((rod, cap) for rod in _rods(asm, b, opts) for cap in (True, False)):
+    # cap (the closed loop holds the joint), neither; without the cap only where no rod and
+    # side holds one
+    tries = [(b, rod) for b in ranked[:GROUND_TRIES] for rod in _rods(asm, b, opts)]
+    for cap in (True, False):
+        fallback = None
+        for b, rod in tries:
             try:
                 grounded = _on_rod(asm, replace(b, rod=rod), opts, cap)
             except FabricationError as exc:  # this rod or side leaves a link in pieces
                 if exc.reason not in ("falls-apart", "bad-parameters", "not-watertight"):
                     raise
                 continue
-            flat_ok = all(grounded[0].slack[i] >= 0 for i in (b.joint, (b.joint + 1) % 6))
-            if flat_ok and cap:
+            if all(grounded[0].slack[i] >= 0 for i in (b.joint, (b.joint + 1) % 6)):
                 return (*grounded, warnings)
-            found.setdefault((cap, flat_ok), grounded)
-    for cap, flat_ok in ((True, False), (False, True), (False, False)):
-        if (cap, flat_ok) in found:
-            return (*found[cap, flat_ok], warnings)  # make() names the links not flat
+            fallback = fallback or grounded  # make() names the links not flat
+        if fallback is not None:
+            return (*fallback, warnings)
     return asm, None, warnings + [NO_BASE]
 
 
