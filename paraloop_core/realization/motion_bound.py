@@ -54,13 +54,14 @@ def _trig(c: np.ndarray, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``Q(theta)`` and ``Q'(theta)`` ``(T, 8)`` for a polynomial ``(k+1, 8)`` (see module)."""
     k = c.shape[0] - 1
     s, co = np.sin(theta)[:, None], np.cos(theta)[:, None]
+    sp, cp = [s**m for m in range(k + 1)], [co**m for m in range(k + 1)]  # each power once
     q = np.zeros(theta.shape + (8,))
     dq_ = np.zeros_like(q)
     for m in range(k + 1):  # tiny degree
-        q += s**m * co ** (k - m) * c[m]
-        d = m * s ** max(m - 1, 0) * co ** (k - m + 1) if m > 0 else 0.0
+        q += sp[m] * cp[k - m] * c[m]
+        d = m * sp[max(m - 1, 0)] * cp[k - m + 1] if m > 0 else 0.0
         if m < k:
-            d = d - (k - m) * s ** (m + 1) * co ** (k - m - 1)
+            d = d - (k - m) * sp[m + 1] * cp[k - m - 1]
         dq_ += d * c[m]
     return q, dq_
 
