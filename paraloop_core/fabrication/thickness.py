@@ -43,10 +43,16 @@ def _first_exit(origins: np.ndarray, dirs: np.ndarray, tris: np.ndarray,
     # rays in runs along the part's longest extent: each run's box meets few triangles, so
     # the ray-triangle box tests run on those only
     order = np.argsort(origins[:, int(np.argmax(np.ptp(origins, axis=0)))], kind="stable")
+    lo_c, hi_c = lo_t.T.copy(), hi_t.T.copy()  # per component: no reductions over 3 columns
     for run in np.array_split(order, max(1, len(order) // _RUN)):
-        cand = np.flatnonzero(np.all((lo_r[run].min(0) <= hi_t) & (hi_r[run].max(0) >= lo_t),
-                                     axis=1))
-        near = np.all((lo_r[run, None] <= hi_t[cand]) & (hi_r[run, None] >= lo_t[cand]), -1)
+        lo_run, hi_run = lo_r[run].min(0), hi_r[run].max(0)
+        box = (lo_run[0] <= hi_c[0]) & (hi_run[0] >= lo_c[0])
+        for k in (1, 2):
+            box &= (lo_run[k] <= hi_c[k]) & (hi_run[k] >= lo_c[k])
+        cand = np.flatnonzero(box)
+        near = np.ones((len(run), len(cand)), bool)
+        for k in range(3):
+            near &= (lo_r[run, k, None] <= hi_c[k, cand]) & (hi_r[run, k, None] >= lo_c[k, cand])
         r, f = np.nonzero(near)
         r_all, f = run[r], cand[f]
         o, d = origins[r_all], dirs[r_all]
