@@ -54,10 +54,10 @@ def _crosses(a0: np.ndarray, a1: np.ndarray, b0: np.ndarray, b1: np.ndarray) -> 
 
 def _through(p0: np.ndarray, p1: np.ndarray, box: np.ndarray, samples: int = 12) -> np.ndarray:
     """Whether segments ``p0 p1`` ``(C, 2)`` pass through ``box`` ``(4,)`` (sampled)."""
-    t = np.linspace(0.08, 0.92, samples)[:, None, None]
-    q = p0 + t * (p1 - p0)
-    return ((q[..., 0] > box[0]) & (q[..., 0] < box[2]) & (q[..., 1] > box[1])
-            & (q[..., 1] < box[3])).any(0)
+    t = np.linspace(0.08, 0.92, samples)[:, None]
+    x = p0[:, 0] + t * (p1[:, 0] - p0[:, 0])  # (samples, C), per coordinate
+    y = p0[:, 1] + t * (p1[:, 1] - p0[:, 1])
+    return ((x > box[0]) & (x < box[2]) & (y > box[1]) & (y < box[3])).any(0)
 
 
 def _candidates(anchor: np.ndarray, w: float, h: float, size: tuple[int, int]) -> np.ndarray:

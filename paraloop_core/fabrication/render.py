@@ -341,7 +341,7 @@ def render_image(items: Sequence[Item], labels: Sequence[Label] = (),
     h, w = cam.shape
     keys, rgb, owner, layers = _opaque(items, cam, float(np.cos(np.radians(view.crease_deg))))
     img = np.empty((h * w, 3), np.uint8)
-    img[:] = view.background
+    img.reshape(h, 3 * w)[:] = np.tile(np.asarray(view.background, np.uint8), w)  # row by row
     seen = np.flatnonzero(keys != raster.EMPTY)
     face = keys[seen] & raster.FACE_MASK
     img[seen] = np.round(rgb).astype(np.uint8)[face]
@@ -371,13 +371,15 @@ def render_image(items: Sequence[Item], labels: Sequence[Label] = (),
     if not labels:
         return im.reduce(ss) if ss > 1 else im
     # anchors and free space at the picture's size (the item seen at one sample per pixel)
-    who = np.full(h * w, -1, np.int64)
-    who[seen] = owner[face]
-    who = who.reshape(h, w)[ss // 2::ss, ss // 2::ss]
+    sub = keys.reshape(h, w)[ss // 2::ss, ss // 2::ss]
+    who = np.full(sub.shape, -1, np.int64)
+    who[sub != raster.EMPTY] = owner[sub[sub != raster.EMPTY] & raster.FACE_MASK]
     anchors = np.array([annotate.snap(cam.project(np.array(lab.anchor_xyz))[:2] / ss, who,
                                       lab.item, 2) for lab in labels])
     small = np.asarray(im.reduce(ss) if ss > 1 else im)
-    drawn = (small != np.asarray(view.background, np.uint8)).any(-1)
+    drawn = np.zeros(small.shape[:2], bool)
+    for k, level in enumerate(view.background):  # per channel: no reduction over 3 values
+        drawn |= small[..., k] != level
     font = annotate.font(view.font_px)
     sizes = np.array([annotate.box_size(lab.text, font) for lab in labels])
     boxes = annotate.place_labels(anchors, sizes, view.size, drawn)
