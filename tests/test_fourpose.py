@@ -72,7 +72,12 @@ def test_random_world_poses_interpolated(seed):
         for mi in m:
             assert proportional(dq.mul(poly.evaluate_pose(mi, np.inf), poses[0]), poses[0]) < 1e-9
             for i in range(3):
-                pose = dq.mul(poly.evaluate_pose(mi, fams.t[family, i]), poses[0])
+                at = poly.evaluate_pose(mi, fams.t[family, i])
+                terms = np.abs(mi[:, :4]).sum(axis=0).max() * max(1.0, abs(fams.t[family, i])) ** 3
+                if np.linalg.norm(at[:4]) < 1e-6 * terms:
+                    continue  # a random mu whose member passes the null pose at t_i: its pose
+                    # there is rounding (seed 321276: 7e-10 against terms of 1), not a pose
+                pose = dq.mul(at, poses[0])
                 assert proportional(pose, poses[i + 1]) < 1e-7
         # batched equals per element (None means mu = inf)
         for mu, cb in zip(mus, c_rel, strict=True):
