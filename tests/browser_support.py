@@ -201,11 +201,10 @@ def inside_fraction(page, report, pts: np.ndarray) -> float:
     return float(np.mean(ok))
 
 
-def extent(studio) -> np.ndarray:
-    try:
-        pts = np.asarray(studio.scene.extent_points(), float)
-    except AttributeError as exc:
-        pytest.fail(f"missing feature: SceneView.extent_points() ({exc})")
+def extent(studio, opening: bool = False) -> np.ndarray:
+    """The points a framing shows: *Frame all*'s, or with ``opening`` the opening one's."""
+    scene = studio.scene
+    pts = np.asarray((scene.object_shot() if opening else scene.all_shot()).points, float)
     assert pts.ndim == 2 and pts.shape[1] == 3 and len(pts) >= 4, pts.shape
     assert np.all(np.isfinite(pts))
     return pts
