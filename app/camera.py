@@ -193,7 +193,10 @@ def frame_object(server: viser.ViserServer, shot: Subject, clients: list[Any] | 
 
 def unmoved(cam: Any, position: np.ndarray) -> bool:
     """Whether a browser's camera is still at ``position`` (within a thousandth of its
-    distance to the look-at point: the browser's report rounds)."""
+    distance to the look-at point: the browser's report rounds; one that has not reported
+    yet starts from the initial camera)."""
+    if not _reported(cam):
+        return True
     here = np.asarray(cam.position, float)
     dist = float(np.linalg.norm(here - np.asarray(cam.look_at, float)))
     return bool(np.linalg.norm(here - position) <= 1e-3 * max(dist, 1e-12))

@@ -158,9 +158,10 @@ class Studio(FileTransfers):
     def _frame_parts(self) -> None:
         """The printed parts arrived after an opening framing: frame them (the object) in
         every page whose camera stayed where that framing put it, and for new pages."""
-        aimed, self._aimed = self._aimed, None
+        aimed, self._aimed = self._aimed or {}, None
+        start = np.asarray(self.server.initial_camera.position, float)  # pages opened since
         clients = [c for cid, c in self.server.get_clients().items()
-                   if cid in (aimed or {}) and camera.unmoved(c.camera, aimed[cid])]
+                   if camera.unmoved(c.camera, aimed.get(cid, start))]
         view, _ = camera.frame_object(self.server, self.scene.object_shot(), clients)
         with self.server.atomic():
             self.scene.set_view(view)
