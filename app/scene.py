@@ -151,18 +151,14 @@ class SceneView:
         ones) so that no two overlap in :attr:`view` (:func:`labels.place`)."""
         if positions is not None:
             self.target_positions = np.asarray(positions, float).reshape(-1, 3)
-        if len(self.labels) != len(self.target_positions) or not self.labels:
+        if len(self.labels) != len(self.target_positions) or not self.labels \
+                or self.view is None:  # placed when the opening framing sets the view
             return
-        view = self.view or self.opening_view()
-        at = labels.place(self.target_positions, [lb.text for lb in self.labels], view)
+        at = labels.place(self.target_positions, [lb.text for lb in self.labels], self.view)
         for label, p in zip(self.labels, at, strict=True):
             label.position = p
 
-    def opening_view(self) -> labels.View:
-        """The camera that frames the object when a design opens (:meth:`object_shot`)."""
-        return camera.best_view(self.object_shot(), float(self.server.initial_camera.fov))
-
-    def set_view(self, view: labels.View) -> None:
+    def set_view(self, view: labels.View | None) -> None:
         """The camera the labels are placed for (a framing); re-places them."""
         self.view = view
         self.place_labels()
