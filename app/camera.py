@@ -32,6 +32,9 @@ DEFAULT_DIRECTION = np.array([0.8, -1.1, 0.7])
 #: a target's centre (its gizmo and label reach beyond it).
 MARGIN = 0.06
 TARGET_MARGIN = 0.04
+#: Least distance (along the view) from the camera to the nearest point, as a share of the
+#: points' largest extent: a camera closer than that would blow its nearest piece up.
+NEAREST = 0.35
 #: Elevations (deg) and azimuth step (deg) of the directions the object is viewed from.
 ELEVATIONS = (10.0, 20.0, 30.0, 45.0)
 AZIMUTH_STEP = 15.0
@@ -89,8 +92,9 @@ def framing(shot: Subject, fov: float, size: tuple[float, float],
     """Camera ``(position, look_at)`` as close as it gets while every point of ``shot`` stays
     in the canvas of ``size`` (width, height) px left of a panel ``panel_px`` wide, inside
     its margin, looking along ``-direction`` (z up) with vertical field of view ``fov``
-    (rad). The distance is found by bisection; the sideways position then centres the
-    points' room; ``look_at`` is on the view axis at the points' middle depth."""
+    (rad), no nearer to them than :data:`NEAREST`. The distance is found by bisection; the
+    sideways position then centres the points' room; ``look_at`` is on the view axis at
+    the points' middle depth."""
     width, height = (float(s) if s and s > 0 else d
                      for s, d in zip(size, DEFAULT_SIZE, strict=True))
     right, up, fwd = _basis(direction)
@@ -107,7 +111,7 @@ def framing(shot: Subject, fov: float, size: tuple[float, float],
         return lo_x <= hi_x and lo_y <= hi_y, 0.5 * (lo_x + hi_x), 0.5 * (lo_y + hi_y)
 
     span = max(float(np.ptp(shot.points, axis=0).max()), 1e-9)
-    near, far = float(z.min()) - 1e-6 * span, float(z.min()) - 1e3 * span
+    near, far = float(z.min()) - NEAREST * span, float(z.min()) - 1e3 * span
     for _ in range(36):
         mid = 0.5 * (near + far)
         if room(mid)[0]:

@@ -351,9 +351,10 @@ def label_boxes(page, report, labels: dict[str, dict]) -> np.ndarray:
 
 
 def drag_gizmo(page, client, gizmo, pixels: float, steps: int = 10) -> None:
-    """A real mouse drag of ``gizmo``'s arrow that looks longest on screen, ``pixels`` along
-    it, seen by ``client``'s camera; the mouse is still down when this returns (call
-    ``page.mouse.up()`` to release)."""
+    """A real mouse drag of ``gizmo``'s arrow that looks longest on screen (of those whose
+    drag stays in the scene left of the panel), ``pixels`` along it, seen by ``client``'s
+    camera; the mouse is still down when this returns (call ``page.mouse.up()`` to
+    release)."""
     cam = client.camera
     rot, c = tf.SO3(cam.wxyz).as_matrix(), cam.position.copy()
     bb = page.locator("canvas").first.bounding_box()
@@ -365,11 +366,20 @@ def drag_gizmo(page, client, gizmo, pixels: float, steps: int = 10) -> None:
                          bb["y"] + bb["height"] / 2 + f * pc[1] / pc[2]])
 
     centre, axes, s = gizmo.position.copy(), tf.SO3(gizmo.wxyz).as_matrix(), gizmo.scale
-    a = int(np.argmax([np.linalg.norm(proj(centre + s * axes[:, k]) - proj(centre))
-                       for k in range(3)]))
-    d = proj(centre + s * axes[:, a]) - proj(centre)
-    d /= np.linalg.norm(d)
-    start = proj(centre + 0.9 * s * axes[:, a])
+    right = panel_left(page)
+
+    def on_canvas(p) -> bool:
+        return bb["x"] < p[0] < right and bb["y"] < p[1] < bb["y"] + bb["height"]
+
+    def arrow(k: int) -> tuple[float, np.ndarray, np.ndarray]:
+        """(on screen length or -1 when the drag would leave the scene, start, direction)."""
+        d = proj(centre + s * axes[:, k]) - proj(centre)
+        length = float(np.linalg.norm(d))
+        start, d = proj(centre + 0.9 * s * axes[:, k]), d / length
+        ok = on_canvas(start) and on_canvas(start + pixels * d)
+        return (length if ok else -1.0), start, d
+
+    _, start, d = max((arrow(k) for k in range(3)), key=lambda r: r[0])
     page.mouse.move(*start)
     page.mouse.down()
     for k in range(1, steps + 1):
