@@ -350,11 +350,11 @@ def label_boxes(page, report, labels: dict[str, dict]) -> np.ndarray:
     return np.concatenate([centre - half, centre + half], axis=-1)
 
 
-def drag_gizmo(page, client, gizmo, pixels: float, steps: int = 10) -> None:
-    """A real mouse drag of ``gizmo``'s arrow that looks longest on screen (of those whose
-    drag stays in the scene left of the panel), ``pixels`` along it, seen by ``client``'s
-    camera; the mouse is still down when this returns (call ``page.mouse.up()`` to
-    release)."""
+def drag_gizmo(page, client, gizmo, pixels: float, steps: int = 10, rank: int = 0) -> None:
+    """A real mouse drag of ``gizmo``'s arrow that looks longest on screen (``rank`` 1, 2:
+    the next ones; arrows whose drag leaves the scene left of the panel last), ``pixels``
+    along it, seen by ``client``'s camera; the mouse is still down when this returns (call
+    ``page.mouse.up()`` to release)."""
     cam = client.camera
     rot, c = tf.SO3(cam.wxyz).as_matrix(), cam.position.copy()
     bb = page.locator("canvas").first.bounding_box()
@@ -379,7 +379,7 @@ def drag_gizmo(page, client, gizmo, pixels: float, steps: int = 10) -> None:
         ok = on_canvas(start) and on_canvas(start + pixels * d)
         return (length if ok else -1.0), start, d
 
-    _, start, d = max((arrow(k) for k in range(3)), key=lambda r: r[0])
+    _, start, d = sorted((arrow(k) for k in range(3)), key=lambda r: -r[0])[rank]
     page.mouse.move(*start)
     page.mouse.down()
     for k in range(1, steps + 1):
