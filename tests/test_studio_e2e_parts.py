@@ -39,7 +39,7 @@ browser = browser_support.browser  # the fixture
 readonly_assets = browser_support.readonly_assets  # the fixture
 
 #: Least share of the visible scene the printed parts cover at the opening framing (issue
-#: 28's done-when; measured 8.6 - 31 % on the five examples).
+#: 28's done-when; measured 8.6 - 31 % on the five examples, tv8 the least).
 MIN_COVER = 0.04
 #: A pixel differs between the screenshots when a channel moves by more than this (of 255):
 #: above the renderer's noise, far below the parts' contrast with the background.
