@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from viser import transforms as tf
 
 from app import solver as solver_mod
 from paraloop_core import design as design_mod
@@ -23,8 +24,10 @@ from tests import browser_support
 from tests.browser_support import (
     ASSETS,
     EXAMPLES,
+    VIEWPORT,
     connect,
     drag_gizmo,
+    panel_left,
     serve,
     toasts,
     upload,
@@ -81,8 +84,23 @@ def test_load_leaves_no_stale_labels_and_shows_one_toast(browser, tmp_path):
                 pg.context.close()
 
 
+def loneliest(page, cam, positions: np.ndarray, candidates: list[int]) -> int:
+    """The candidate target farthest on screen (seen by ``cam``) from every other target,
+    of those at least 100 px inside the scene left of the panel (if any): its gizmo's
+    arrows lie under no other gizmo and their drags stay in the scene."""
+    pc = (np.asarray(positions, float) - cam.position) @ tf.SO3(cam.wxyz).as_matrix()
+    f = 0.5 * VIEWPORT["height"] / np.tan(0.5 * cam.fov)
+    at = 0.5 * np.array([VIEWPORT["width"], VIEWPORT["height"]]) + f * pc[:, :2] / pc[:, 2:]
+    inner = [i for i in candidates if 100 < at[i, 0] < panel_left(page) - 100
+             and 100 < at[i, 1] < VIEWPORT["height"] - 100] or candidates
+    gap = [min(np.linalg.norm(at[i] - at[j]) for j in range(len(at)) if j != i)
+           for i in inner]
+    return inner[int(np.argmax(gap))]
+
+
 def autosave_seconds(browser, path: Path, tmp_path: Path) -> float:
-    """The example ``path`` in a page: a real mouse drag of its last free target, released;
+    """The example ``path`` in a page: a real mouse drag of a free target (the
+    :func:`loneliest`), released;
     every full solve after the release (the quick realization search, the full search or a
     fit's multi-start run, each on the worker; the quick searches' budgets cut) is held
     until the autosave is seen. Returns
@@ -107,7 +125,10 @@ def autosave_seconds(browser, path: Path, tmp_path: Path) -> float:
         page, client, _ = connect(app.server, browser)
         try:
             assert app.worker.wait_idle(60)
-            free = max(set(range(len(design.poses))) - set(design.locked))
+            page.add_style_tag(content="[class*=Notification-root] {display: none}")  # the
+            # browser's own note (software WebGL) may cover a gizmo
+            free = loneliest(page, client.camera, app.scene.target_positions,
+                             sorted(set(range(len(design.poses))) - set(design.locked)))
             for rank in range(3):  # a drag that missed the gizmo (drawn a frame late on a
                 drag_gizmo(page, client, app.scene.gizmos[free], 80.0, rank=rank)  # loaded
                 released = time.time()  # machine, or an arrow under another target's gizmo)
