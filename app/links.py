@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 import trimesh
 import viser
+from viser import transforms as tf
 
 #: Link colours: base link grey, end link (3) dark orange, the others orange.
 LINK_COLORS = np.array([[90, 90, 100], [230, 110, 0], [230, 110, 0], [190, 50, 0],
@@ -125,6 +126,19 @@ def draw_instances(server: viser.ViserServer, handles: dict[str, Any], key: str,
         h.batched_colors = inst.colors
 
 
+def posed_triangles(vertices: np.ndarray, faces: np.ndarray, positions: np.ndarray,
+                    wxyzs: np.ndarray, scales: np.ndarray | float = 1.0) -> np.ndarray:
+    """Triangles ``(M, 3, 3)`` of a mesh placed at ``positions`` ``(3,)`` or ``(K, 3)`` with
+    rotations ``wxyzs`` and per-axis ``scales`` (instances: ``K`` copies)."""
+    pos = np.asarray(positions, float).reshape(-1, 3)
+    rot = tf.SO3(np.asarray(wxyzs, float).reshape(-1, 4)).as_matrix().reshape(-1, 3, 3)
+    scale = np.broadcast_to(np.asarray(scales, float).reshape(-1, 3) if np.ndim(scales)
+                            else float(scales), (len(pos), 3))
+    v = np.asarray(vertices, float)
+    world = np.einsum("kij,kvj->kvi", rot, v[None] * scale[:, None]) + pos[:, None]
+    return world[:, np.asarray(faces)].reshape(-1, 3, 3)
+
+
 class LinkMeshes:
     """Meshes of the six links (some may be missing) in their home frames, drawn at
     ``path/i`` and moved with their links; they belong to one loop (its joint factors)."""
@@ -168,6 +182,11 @@ class LinkMeshes:
         for _, h in self.handles:
             if h.visible != visible:
                 h.visible = visible
+
+    def triangles(self) -> np.ndarray:
+        """The meshes' triangles ``(M, 3, 3)`` as posed (world frame)."""
+        return np.concatenate([posed_triangles(h.vertices, h.faces, h.position, h.wxyz)
+                               for _, h in self.handles] or [np.zeros((0, 3, 3))])
 
     def __iter__(self) -> Iterator[tuple[int, Any]]:
         """The ``(link, mesh handle)`` pairs."""

@@ -110,6 +110,7 @@ class SceneView:
         self.last_real: tuple[np.ndarray, np.ndarray, float] | None = None
         self.ghost: tuple[np.ndarray, np.ndarray, float] | None = None
         self.target_positions = np.zeros((0, 3))
+        self.locked: tuple[int, ...] = ()
 
     # --- targets ----------------------------------------------------------------------------
     def set_targets(self, design: Design) -> None:
@@ -135,6 +136,7 @@ class SceneView:
             g.active_axes = (not locked,) * 3
             g.disable_rotations = locked
             g.opacity = 0.25 if locked else 1.0
+        self.locked = design.locked
         self.place_labels(design.pose_array[0])
 
     def _remove_targets(self) -> None:
@@ -149,38 +151,45 @@ class SceneView:
         ones) so that no two overlap in :attr:`view` (:func:`labels.place`)."""
         if positions is not None:
             self.target_positions = np.asarray(positions, float).reshape(-1, 3)
-        if len(self.labels) != len(self.target_positions) or not self.labels:
+        if len(self.labels) != len(self.target_positions) or not self.labels \
+                or self.view is None:  # placed when the opening framing sets the view
             return
-        view = self.view or self.opening_view()
-        at = labels.place(self.target_positions, [lb.text for lb in self.labels], view)
+        at = labels.place(self.target_positions, [lb.text for lb in self.labels], self.view)
         for label, p in zip(self.labels, at, strict=True):
             label.position = p
 
-    def opening_view(self) -> labels.View:
-        """The camera that frames :meth:`extent_points` when a design opens."""
-        fov = float(self.server.initial_camera.fov)
-        position, look_at = camera.framing(self.extent_points(), fov, camera.DEFAULT_SIZE)
-        return labels.View(position, look_at, fov, camera.DEFAULT_SIZE)
-
-    def set_view(self, view: labels.View) -> None:
+    def set_view(self, view: labels.View | None) -> None:
         """The camera the labels are placed for (a framing); re-places them."""
         self.view = view
         self.place_labels()
 
-    def extent_points(self) -> np.ndarray:
-        """World points ``(N, 3)`` that framing must show: targets, trajectory, the linkage
-        (or its ghost) over the cycle."""
-        parts = [self.target_positions.reshape(-1, 3)]
-        if "path" in self.handles:
-            parts.append(np.asarray(self.handles["path"].points, float).reshape(-1, 3))
-        t = poly.param_to_t(np.linspace(0.0, 1.0, 33)[:-1])
-        for jf, home in ((self.joint_factors, self.points_home),
-                         (None, None) if self.ghost is None else self.ghost[:2]):
-            if jf is not None and home is not None:
-                poses = np.repeat(loops.link_poses(jf, t), 2, axis=1)  # (T, 12, 8)
-                parts.append(dq.transform_points(poses, home).reshape(-1, 3))
-        pts = np.concatenate(parts)
-        return pts[np.all(np.isfinite(pts), axis=1)]
+    def object_triangles(self) -> np.ndarray:
+        """The object as drawn, world triangles ``(M, 3, 3)``: the printed parts when they
+        show, else the solid links' bars (and the carried object)."""
+        if self.parts_shown() and all(h.visible for _, h in self.parts):
+            return np.concatenate([self.parts.triangles(), self.hardware.triangles()])
+        out = [np.zeros((0, 3, 3))]
+        bars, effector = self.handles.get("bars"), self.handles.get("effector")
+        if bars is not None and self.points_home is not None:
+            out.append(links.posed_triangles(links.CYLINDER.vertices, links.CYLINDER.faces,
+                                             bars.batched_positions, bars.batched_wxyzs,
+                                             bars.batched_scales))
+        if effector is not None:
+            out.append(links.posed_triangles(effector.vertices, effector.faces,
+                                             effector.position, effector.wxyz))
+        return np.concatenate(out)
+
+    def object_shot(self) -> camera.Subject:
+        """The opening framing's subject: the object and the free targets (the gizmos one
+        drags; locked targets may fall outside)."""
+        free = [i for i in range(len(self.target_positions)) if i not in self.locked]
+        return camera.subject(self.object_triangles(), self.target_positions[free])
+
+    def all_shot(self) -> camera.Subject:
+        """*Frame all*'s subject: every target, the trajectory and the object as drawn."""
+        path = self.handles.get("path")
+        return camera.subject(self.object_triangles(), self.target_positions,
+                              None if path is None else np.asarray(path.points, float))
 
     def _rescale(self, design: Design) -> None:
         """New characteristic length: grid, initial camera; sized handles are recreated."""

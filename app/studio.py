@@ -21,6 +21,7 @@ import traceback
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import viser
 
 from app import camera
@@ -68,6 +69,9 @@ class Studio(FileTransfers):
         # frame the camera: "open" after the next full update, "keep" (Frame all: each page
         # keeps its direction) at the next job
         self._frame_pending: str | None = "open"
+        # the browsers' cameras the opening framing set (client id -> position), framed again
+        # on the printed parts when they arrive unless moved since (None: nothing to do)
+        self._aimed: dict[int, np.ndarray] | None = None
         self.solver = Solver()  # cached, warm-started solves
         self.timings: dict[int, list[float]] = {PREVIEW: [], FULL: [], REFINE: [], FRAME: []}
         self._need_sync = True
@@ -139,9 +143,26 @@ class Studio(FileTransfers):
         self.request(FRAME)
 
     def frame_all(self, keep_direction: bool = False) -> None:
-        """Frame targets, trajectory and linkage in every page (left of the GUI panel) and
-        place the target labels for that view (worker thread)."""
-        view = camera.frame_all(self.server, self.scene.extent_points(), keep_direction)
+        """*Frame all* (``keep_direction``): every page keeps its direction and shows the
+        targets, the trajectory and the object; else (a design opened) the object and the
+        free targets, from the direction showing the object largest (``camera``). Places
+        the target labels for that view (worker thread)."""
+        if keep_direction:
+            self._aimed = None
+            view = camera.frame_all(self.server, self.scene.all_shot()) or self.scene.view
+        else:
+            view, self._aimed = camera.frame_object(self.server, self.scene.object_shot())
+        with self.server.atomic():
+            self.scene.set_view(view)
+
+    def _frame_parts(self) -> None:
+        """The printed parts arrived after an opening framing: frame them (the object) in
+        every page whose camera stayed where that framing put it, and for new pages."""
+        aimed, self._aimed = self._aimed or {}, None
+        start = np.asarray(self.server.initial_camera.position, float)  # pages opened since
+        clients = [c for cid, c in self.server.get_clients().items()
+                   if camera.unmoved(c.camera, aimed.get(cid, start))]
+        view, _ = camera.frame_object(self.server, self.scene.object_shot(), clients)
         with self.server.atomic():
             self.scene.set_view(view)
 
@@ -200,6 +221,8 @@ class Studio(FileTransfers):
         self.timings[key].append(time.perf_counter() - start)
         self.drive.update(self.solution, design.drive, level)  # planned on its own thread
         self.printview.update(self.solution, design, level)  # built in a child process
+        if self._aimed is not None and self.scene.parts_shown():
+            self._frame_parts()
         frame, self._frame_pending = self._frame_pending, None
         if frame == "keep" or (frame == "open" and level == FULL):
             self.frame_all(keep_direction=frame == "keep")  # targets alone if nothing solved

@@ -201,11 +201,10 @@ def inside_fraction(page, report, pts: np.ndarray) -> float:
     return float(np.mean(ok))
 
 
-def extent(studio) -> np.ndarray:
-    try:
-        pts = np.asarray(studio.scene.extent_points(), float)
-    except AttributeError as exc:
-        pytest.fail(f"missing feature: SceneView.extent_points() ({exc})")
+def extent(studio, opening: bool = False) -> np.ndarray:
+    """The points a framing shows: *Frame all*'s, or with ``opening`` the opening one's."""
+    scene = studio.scene
+    pts = np.asarray((scene.object_shot() if opening else scene.all_shot()).points, float)
     assert pts.ndim == 2 and pts.shape[1] == 3 and len(pts) >= 4, pts.shape
     assert np.all(np.isfinite(pts))
     return pts
@@ -351,9 +350,10 @@ def label_boxes(page, report, labels: dict[str, dict]) -> np.ndarray:
     return np.concatenate([centre - half, centre + half], axis=-1)
 
 
-def drag_gizmo(page, client, gizmo, pixels: float, steps: int = 10) -> None:
-    """A real mouse drag of ``gizmo``'s arrow that looks longest on screen, ``pixels`` along
-    it, seen by ``client``'s camera; the mouse is still down when this returns (call
+def drag_gizmo(page, client, gizmo, pixels: float, steps: int = 10, rank: int = 0) -> None:
+    """A real mouse drag of ``gizmo``'s arrow that looks longest on screen (``rank`` 1, 2:
+    the next ones; arrows whose drag leaves the scene left of the panel last), ``pixels``
+    along it, seen by ``client``'s camera; the mouse is still down when this returns (call
     ``page.mouse.up()`` to release)."""
     cam = client.camera
     rot, c = tf.SO3(cam.wxyz).as_matrix(), cam.position.copy()
@@ -366,11 +366,20 @@ def drag_gizmo(page, client, gizmo, pixels: float, steps: int = 10) -> None:
                          bb["y"] + bb["height"] / 2 + f * pc[1] / pc[2]])
 
     centre, axes, s = gizmo.position.copy(), tf.SO3(gizmo.wxyz).as_matrix(), gizmo.scale
-    a = int(np.argmax([np.linalg.norm(proj(centre + s * axes[:, k]) - proj(centre))
-                       for k in range(3)]))
-    d = proj(centre + s * axes[:, a]) - proj(centre)
-    d /= np.linalg.norm(d)
-    start = proj(centre + 0.9 * s * axes[:, a])
+    right = panel_left(page)
+
+    def on_canvas(p) -> bool:
+        return bb["x"] < p[0] < right and bb["y"] < p[1] < bb["y"] + bb["height"]
+
+    def arrow(k: int) -> tuple[float, np.ndarray, np.ndarray]:
+        """(on screen length or -1 when the drag would leave the scene, start, direction)."""
+        d = proj(centre + s * axes[:, k]) - proj(centre)
+        length = float(np.linalg.norm(d))
+        start, d = proj(centre + 0.9 * s * axes[:, k]), d / length
+        ok = on_canvas(start) and on_canvas(start + pixels * d)
+        return (length if ok else -1.0), start, d
+
+    _, start, d = sorted((arrow(k) for k in range(3)), key=lambda r: -r[0])[rank]
     page.mouse.move(*start)
     page.mouse.down()
     for k in range(1, steps + 1):

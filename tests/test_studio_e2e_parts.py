@@ -1,9 +1,11 @@
-"""End-to-end test in real headless Chromium of what you see is what you print (issue 28): an
-example opened from a read-only copy shows its printed parts (built in the background after
-the opening), visible at the opening framing and covering more of it than the solid links
-(pixels of screenshots with the parts, the solid links and no linkage, :data:`MIN_COVER`),
-and they are the parts *Export all* writes (per link the volume and box of the scene's
-meshes against ``report.json``, mm over the export's mm per design unit).
+"""End-to-end test in real headless Chromium of what you see is what you print (issue 28): each
+example opened from a read-only copy (one browser for all five) shows its printed parts
+(built in the background after the opening), framed when they arrive so that they cover at
+least :data:`MIN_COVER` of the view left of the panel (pixels of screenshots with the parts
+and with no linkage) with the free targets in view and the status one plain sentence; for
+tv8 they cover more than the solid links, and they are the parts *Export all* writes (per
+link the volume and box of the scene's meshes against ``report.json``, mm over the export's
+mm per design unit).
 
 Skipped when chromium or playwright is missing, except under ``CI=true`` where that fails.
 """
@@ -11,6 +13,7 @@ Skipped when chromium or playwright is missing, except under ``CI=true`` where t
 from __future__ import annotations
 
 import io
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -19,20 +22,25 @@ from PIL import Image
 
 from app.exports import export_zip
 from app.scene import LINKAGE, PARTS
-from paraloop_core import design as design_mod
 from tests import browser_support
-from tests.browser_support import connect, panel_left, serve, wait_for
+from tests.browser_support import (
+    EXAMPLES,
+    connect,
+    inside_fraction,
+    open_studio,
+    panel_left,
+    wait_for,
+    wait_framed,
+)
+from tests.test_studio_plain import sentence_problems
 
 pytestmark = pytest.mark.browser
 browser = browser_support.browser  # the fixture
 readonly_assets = browser_support.readonly_assets  # the fixture
 
-#: Least share of the visible scene the printed parts of tv8 cover at the opening framing.
-#: Issue 28 asks for 4 %; the opening framing shows targets, trajectory and the swept
-#: linkage, which for tv8 is about four times the folded loop's size, so its parts cover
-#: about 0.4 % (the solid links 0.1 %): this checks they are drawn and visible, the 4 %
-#: needs another opening framing (the lead's call, see the branch's report).
-MIN_COVER = 0.002
+#: Least share of the visible scene the printed parts cover at the opening framing (issue
+#: 28's done-when; measured 8.6 - 31 % on the five examples, tv8 the least).
+MIN_COVER = 0.04
 #: A pixel differs between the screenshots when a channel moves by more than this (of 255):
 #: above the renderer's noise, far below the parts' contrast with the background.
 PIXEL_STEP = 24
@@ -63,40 +71,75 @@ def parts_nodes(page, visible: bool) -> bool:
     return len(nodes) == 6 and all(v["visible"] == visible for v in nodes)
 
 
-def test_printed_parts_cover_the_scene_and_match_the_export(browser, readonly_assets,
-                                                             monkeypatch, tmp_path):
-    monkeypatch.setenv("PARALOOP_STUDIO_PARTS", "1")
-    design = design_mod.load_design(readonly_assets / "designs" / "tv8.json")
-    with serve(design, tmp_path / "auto.json") as app:
-        page, _, _ = connect(app.server, browser)
-        try:
-            assert app.printview.wait_idle(180) and app.worker.wait_idle(60)
-            parts = app.printview.parts
-            assert parts is not None, app.printview.card.text.content
-            assert wait_for(lambda: parts_nodes(page, True), 30), sorted(page.scene.nodes)
-            page.wait_for_timeout(1500)  # rendered
-            shots = {"parts": scene_shot(page)}
-            app.panels.layers[PARTS].value = False  # the solid links at their true radius
-            assert app.worker.wait_idle(30)
-            assert wait_for(lambda: parts_nodes(page, False), 10)
-            page.wait_for_timeout(1500)
-            shots["solid links"] = scene_shot(page)
-            app.panels.layers[LINKAGE].value = False  # no linkage at all
-            assert app.worker.wait_idle(30)
-            page.wait_for_timeout(1500)
-            shots["none"] = scene_shot(page)
-            cover = {k: float(np.mean(solid(np.abs(v - shots["none"]).max(axis=-1)
-                                            > PIXEL_STEP)))
-                     for k, v in shots.items() if k != "none"}
-            print(", ".join(f"{k} cover {100 * v:.1f} %" for k, v in cover.items()))
-            assert cover["parts"] >= MIN_COVER, cover
-            assert cover["parts"] >= 2.0 * cover["solid links"], cover
-            assert not page.js_errors
-        finally:
+def cover(shot: np.ndarray, none: np.ndarray) -> float:
+    """Share of the pixels that differ between ``shot`` and the scene without a linkage."""
+    return float(np.mean(solid(np.abs(shot - none).max(axis=-1) > PIXEL_STEP)))
+
+
+def shot_with(app, page, layer: str, shown: bool) -> np.ndarray:
+    """:func:`scene_shot` once ``layer`` is ``shown`` (or hidden) and the page has drawn."""
+    app.panels.layers[layer].value = shown
+    assert app.worker.wait_idle(30)
+    if layer == PARTS:
+        assert wait_for(lambda: parts_nodes(page, shown), 10)
+    page.wait_for_timeout(1500)  # rendered
+    return scene_shot(page)
+
+
+def example_covers(browser, path: Path) -> dict[str, float]:
+    """The example ``path`` opened as ``run_studio`` does, in a page: its parts arrive, the
+    page is framed on them with the free targets in view and the status sentence plain;
+    the parts' cover (and for tv8 the solid links', the parts checked against the export)."""
+    server, app = open_studio(path)
+    page = None
+    try:
+        page, _, log = connect(server, browser)
+        for button in page.locator("[class*=Notification-closeButton]").all():
+            button.click()  # the browser's own notes (software WebGL) cover the scene
+        assert app.printview.wait_idle(180) and app.worker.wait_idle(60)
+        parts = app.printview.parts
+        assert parts is not None, (path.name, app.printview.card.text.content)
+        assert wait_for(lambda: parts_nodes(page, True), 30), sorted(page.scene.nodes)
+        assert wait_framed(page, log, app.scene.object_shot().points, 0.0) >= 0.95, path.name
+        free = [p for i, p in enumerate(app.scene.target_positions)
+                if i not in app.state.design.locked]
+        assert inside_fraction(page, log.reports[-1], np.array(free)) == 1.0, path.name
+        sentence = app.panels.status.content.strip("*")
+        assert not sentence_problems(sentence), sentence
+        page.wait_for_timeout(1500)  # rendered
+        shots = {"parts": scene_shot(page)}
+        if path.name == "tv8.json":  # the solid links at their true radius
+            shots["solid links"] = shot_with(app, page, PARTS, False)
+        none = shot_with(app, page, LINKAGE, False)
+        assert not page.js_errors, page.js_errors
+        if path.name == "tv8.json":
+            same_as_export(app, parts)
+        return {k: cover(v, none) for k, v in shots.items()}
+    finally:
+        if page is not None:
             page.context.close()
-        # the parts Export all writes: per link the volume and, for a link of one part,
-        # its oriented box against the scene's meshes scaled by the export's mm per unit
-        _, _, report = export_zip(app.solution, app.state.fab)
+        app.close()
+        server.stop()
+
+
+def test_printed_parts_fill_the_opening_view_and_match_the_export(browser, readonly_assets,
+                                                                  monkeypatch):
+    """Every example (:func:`example_covers`): the parts cover at least :data:`MIN_COVER`
+    of the view; tv8's more than twice its solid links."""
+    monkeypatch.setenv("PARALOOP_STUDIO_PARTS", "1")
+    covers = {name: example_covers(browser, readonly_assets / "designs" / name)
+              for name in EXAMPLES}
+    print("; ".join(f"{name}: " + ", ".join(f"{k} cover {100 * v:.1f} %" for k, v in c.items())
+                    for name, c in covers.items()))
+    assert all(c["parts"] >= MIN_COVER for c in covers.values()), covers
+    assert covers["tv8.json"]["parts"] >= 2.0 * covers["tv8.json"]["solid links"], covers
+
+
+def same_as_export(app, parts) -> None:
+    """The parts *Export all* writes are the scene's: per link the volume and, for a link of
+    one part, its oriented box against the scene's meshes scaled by the export's mm per
+    unit."""
+    _, _, report = export_zip(app.solution, app.state.fab)
     scale = report["scale_mm_per_unit"]
     assert scale == pytest.approx(parts.scale, rel=1e-9)
     ground = report["base"]["grounded_link"] if report.get("base") else 0

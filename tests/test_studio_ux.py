@@ -53,12 +53,17 @@ def test_framing_keeps_every_point_left_of_the_panel(seed, size):
     rng = np.random.default_rng(seed)
     pts = rng.normal(size=(200, 3)) * rng.uniform(0.1, 10.0, 3) * 10.0 ** rng.uniform(-3, 4)
     direction = rng.normal(size=3)
-    position, look_at = camera.framing(pts, np.radians(75.0), size, direction)
+    shot = camera.Subject(pts, np.full(len(pts), camera.MARGIN), np.zeros((0, 3, 3)))
+    position, look_at = camera.framing(shot, np.radians(75.0), size, direction)
     assert inside_free_view(pts, position, look_at, np.radians(75.0), size)
-    # and not absurdly far: the points fill a good part of the free view
+    # and as close as it gets: the points touch the margin on two opposite sides, or the
+    # camera is camera.NEAREST of their extent from the nearest
     px = project(pts, position, look_at, np.radians(75.0), size)
-    spread = np.ptp(px, axis=0)
-    assert spread.max() > 0.3 * min(size[0] - camera.PANEL_PX, size[1])
+    room = np.array([size[0] - camera.PANEL_PX, size[1]]) * (1 - 2 * camera.MARGIN)
+    fwd = (look_at - position) / np.linalg.norm(look_at - position)
+    nearest = np.min((pts - position) @ fwd) / np.ptp(pts, axis=0).max()
+    assert np.max(np.ptp(px, axis=0) / room) == pytest.approx(1.0, abs=0.01) \
+        or nearest == pytest.approx(camera.NEAREST, rel=0.01)
 
 
 class _Handle:
@@ -106,11 +111,22 @@ def test_loop_labels_are_readable():
     assert [score_text(v) for v in (77.3, 3.41, 0.052, 2e-7)] == ["77", "3.4", "0.052", "2e-07"]
 
 
-def test_opening_frames_targets_path_and_linkage(tv8):
+def test_opening_frames_the_object_and_the_free_targets(tv8):
+    """The opening camera shows the linkage as drawn and the free target (S3) inside the
+    margins; the object (its triangles) covers more of the view than from the old default
+    direction at the same fit; *Frame all*'s subject has the path and every target."""
     cam = tv8.server.initial_camera
-    pts = tv8.scene.extent_points()
-    assert len(pts) > 256 + 12 * 32 and tv8.scene.points_home is not None
-    assert inside_free_view(pts, np.asarray(cam.position), np.asarray(cam.look_at), cam.fov)
+    shot = tv8.scene.object_shot()
+    assert len(shot.triangles) > 0 and tv8.scene.points_home is not None
+    at = (np.asarray(cam.position), np.asarray(cam.look_at), cam.fov)
+    assert inside_free_view(shot.points, *at)
+    assert inside_free_view(tv8.scene.target_positions[[3]], *at)
+    view = camera.best_view(shot, cam.fov)
+    plain = camera.View(*camera.framing(shot, cam.fov, camera.DEFAULT_SIZE), cam.fov,
+                        camera.DEFAULT_SIZE)
+    assert camera.screen_area(view, shot.triangles) >= camera.screen_area(plain, shot.triangles)
+    everything = tv8.scene.all_shot().points
+    assert len(everything) > len(shot.points)
 
 
 def test_cancel_job_stops_a_carving_and_the_studio_stays_responsive(tv8):
@@ -176,7 +192,7 @@ def test_unusual_scale_is_flagged_and_rescaled(tv8):
     assert "units" in tv8.panels.details.content and tv8.panels.rescale.visible
     assert "see Rescale" in tv8.panels.status.content
     cam = tv8.server.initial_camera  # framed in the big unit too
-    assert inside_free_view(tv8.scene.extent_points(), np.asarray(cam.position),
+    assert inside_free_view(tv8.scene.object_shot().points, np.asarray(cam.position),
                             np.asarray(cam.look_at), cam.fov)
     assert cam.far > np.linalg.norm(np.asarray(cam.position) - np.asarray(cam.look_at))
     click(tv8.panels.rescale)
