@@ -2,10 +2,9 @@
 example opened from a read-only copy (one browser for all five) shows its printed parts
 (built in the background after the opening), framed when they arrive so that they cover at
 least :data:`MIN_COVER` of the view left of the panel (pixels of screenshots with the parts
-and with no linkage) with the free targets in view and the status one plain sentence; for
-tv8 they cover more than the solid links, and they are the parts *Export all* writes (per
-link the volume and box of the scene's meshes against ``report.json``, mm over the export's
-mm per design unit).
+and with no linkage) with the free targets in view and the status one plain sentence; they
+are the parts *Export all* writes (per link the volume and box of the scene's meshes against ``report.json``, mm over the export's
+mm per design unit); for tv8 they cover more than the solid links.
 
 Skipped when chromium or playwright is missing, except under ``CI=true`` where that fails.
 """
@@ -89,7 +88,7 @@ def shot_with(app, page, layer: str, shown: bool) -> np.ndarray:
 def example_covers(browser, path: Path) -> dict[str, float]:
     """The example ``path`` opened as ``run_studio`` does, in a page: its parts arrive, the
     page is framed on them with the free targets in view and the status sentence plain;
-    the parts' cover (and for tv8 the solid links', the parts checked against the export)."""
+    the parts' cover (and for tv8 the solid links'); the parts checked against the export."""
     server, app = open_studio(path)
     page = None
     try:
@@ -112,8 +111,7 @@ def example_covers(browser, path: Path) -> dict[str, float]:
             shots["solid links"] = shot_with(app, page, PARTS, False)
         none = shot_with(app, page, LINKAGE, False)
         assert not page.js_errors, page.js_errors
-        if path.name == "tv8.json":
-            same_as_export(app, parts)
+        same_as_export(app, parts)
         return {k: cover(v, none) for k, v in shots.items()}
     finally:
         if page is not None:
