@@ -3,8 +3,9 @@ example opened from a read-only copy (one browser for all five) shows its printe
 (built in the background after the opening), framed when they arrive so that they cover at
 least :data:`MIN_COVER` of the view left of the panel (pixels of screenshots with the parts
 and with no linkage) with the free targets in view and the status one plain sentence; they
-are the parts *Export all* writes (per link the volume and box of the scene's meshes against ``report.json``, mm over the export's
-mm per design unit); for tv8 they cover more than the solid links.
+are the parts *Export all* writes (per link the volume and box of the scene's meshes against
+``report.json``, mm over the export's mm per design unit); for tv8 they cover more than the
+solid links.
 
 Skipped when chromium or playwright is missing, except under ``CI=true`` where that fails.
 """
