@@ -101,29 +101,31 @@ def realize_variant(sol: Solution, loop: int, d_fraction: float, rho_fraction: f
         "status": "found", "attempts": [], "fallback": None})
 
 
-def roomy_variant(sol: Solution, loop: int, pin: float) -> Solution:
+def roomy_variant(sol: Solution, loop: int, pin: float,
+                  draws: roomy.Draws | None = None) -> Solution:
     """``sol`` realized anew on ``loop`` by :func:`roomy.realize_roomy` (pins ``pin`` of the
-    polyline's extent; the design's fixed vertices, no end-effector); raises
-    :class:`RealizationError` when none of its polylines is certified."""
-    jf, in_unit = sol.search_factors(loop)
+    polyline's extent; the design's fixed vertices, no end-effector; ``draws`` the loop's
+    :func:`roomy.draw` when already made); raises :class:`RealizationError` when none of
+    its polylines is certified."""
     rs = sol.design.realization
-    real = roomy.realize_roomy(jf, dict(rs.fixed), in_unit, pin=pin)
+    real = roomy.realize_roomy(draws or _draws(sol, loop), pin=pin)
     rs = replace(rs, p=float(roomy.FINE_P), d=real.separation, rho=real.radius)
     return replace(sol, design=replace(sol.design, loop=loop, realization=rs),
                    realization=real, end_effector=None, realization_report={
                        "status": "found", "attempts": [], "fallback": None})
 
 
+def _draws(sol: Solution, loop: int) -> roomy.Draws:
+    jf, in_unit = sol.search_factors(loop)
+    return roomy.draw(jf, dict(sol.design.realization.fixed), in_unit)
+
+
 def _roomy_candidates(sol: Solution, made: list[Solution]) -> Iterator[Candidate]:
     """Roomy realizations (:mod:`roomy`) of every loop, the most promising loop first."""
-    rs = sol.design.realization
-    promise = {}
-    for i in range(len(sol.loops)):
-        jf, in_unit = sol.search_factors(i)
-        promise[i] = roomy.promise(jf, dict(rs.fixed), in_unit)
-    for loop in sorted(promise, key=lambda i: -promise[i]):
+    draws = {i: _draws(sol, i) for i in range(len(sol.loops))}
+    for loop in sorted(draws, key=lambda i: -draws[i].promise):
         def run(loop=loop) -> tuple:
-            s = roomy_variant(sol, loop, ROOMY_PIN)
+            s = roomy_variant(sol, loop, ROOMY_PIN, draws[loop])
             made.append(s)
             return s.realization, None
 

@@ -17,7 +17,6 @@ import paraloop_core as pl
 from paraloop_core import printed
 from paraloop_core.fabrication import printable
 from paraloop_core.realization import realize, roomy
-from paraloop_core.realization.offsetting import LoopMotions
 
 
 @pytest.fixture(scope="module")
@@ -29,9 +28,10 @@ def close_design() -> pl.Solution:
 
 def test_screen_orders_by_exact_clearance_below_the_samples(close_design):
     jf, unit = close_design.search_factors(1)
-    search = realize.Search(jf, {2: 0.0}, unit)
-    lp = LoopMotions(search.jf)
-    tau, polys, score = roomy.screen(search, lp)
+    draws = roomy.draw(jf, {2: 0.0}, unit)
+    lp = draws.lp
+    index, score = roomy.screen(draws)
+    tau, polys = draws.tau[index], draws.polys[index]
     assert 0 < len(tau) <= roomy.EXACT and np.all(np.diff(score) <= 0) and np.all(score > 0)
     assert np.all(tau[:, 2] == 0)  # the held vertex is not shifted
     exact = roomy.exact_clearance(lp, polys)
@@ -49,7 +49,7 @@ def test_roomy_certificates_survive_the_referee_and_make_it_printable(close_desi
     with pytest.raises(pl.FabricationError, match="do not fit in the room"):
         printable._plan(sol.realization, printable.Options())
     sized = None
-    for loop in sorted(range(len(sol.loops)), key=lambda i: -roomy.promise(*_factors(sol, i))):
+    for loop in sorted(range(len(sol.loops)), key=lambda i: -roomy.draw(*_factors(sol, i)).promise):
         try:
             roomy_sol = printed.roomy_variant(sol, loop, printed.ROOMY_PIN)
         except pl.RealizationError:

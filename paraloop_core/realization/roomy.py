@@ -17,6 +17,8 @@ sound bounds of :mod:`verify` (:meth:`realize.Search.run_hint`): the certificate
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from paraloop_core.errors import RealizationError
@@ -84,10 +86,32 @@ def exact_clearance(lp: LoopMotions, polys: np.ndarray) -> np.ndarray:
     return out
 
 
-def _draws(search: Search, lp: LoopMotions, seed: int
-           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The drawn integer shifts ``(C, 6)``, thin polylines ``(C, 6, 3)`` and their sampled
-    clearance per extent ``(C,)``."""
+@dataclass(frozen=True, eq=False)
+class Draws:
+    """One loop's drawn thin polylines (:func:`draw`): its ``search`` and motions ``lp``,
+    integer shifts ``tau`` ``(C, 6)`` (steps of ``l / FINE_P``), vertices ``polys``
+    ``(C, 6, 3)``, their ``extent`` ``(C,)`` and sampled clearance per extent ``sampled``."""
+
+    search: Search
+    lp: LoopMotions
+    tau: np.ndarray
+    polys: np.ndarray
+    extent: np.ndarray
+    sampled: np.ndarray
+
+    @property
+    def promise(self) -> float:
+        """The best sampled clearance per extent: cheap, an upper bound of what
+        :func:`screen` finds, to order loops before screening them."""
+        return float(self.sampled.max())
+
+
+def draw(joint_factors: np.ndarray, fixed: dict[int, float] | None, in_unit: float,
+         seed: int = 0) -> Draws:
+    """The :class:`Draws` of the loop ``joint_factors`` ``(6, 8)``; held vertices (the
+    design's ``fixed``) are not shifted."""
+    search = Search(joint_factors, fixed, in_unit)
+    lp = LoopMotions(search.jf)
     v0, length = search.initial()
     rng = np.random.default_rng(seed)
     draws = np.concatenate([rng.uniform(-s, s, (DRAWS, 6)) for s in SCALES])
@@ -95,51 +119,37 @@ def _draws(search: Search, lp: LoopMotions, seed: int
     for i in search.fixed or {}:
         tau[:, i] = 0
     polys = v0 + (tau * length / FINE_P)[..., None] * lp.u
-    return tau, polys, sampled_clearance(lp, polys) / np.ptp(polys, axis=1).max(axis=1)
-
-
-def promise(joint_factors: np.ndarray, fixed: dict[int, float] | None, in_unit: float,
-            seed: int = 0) -> float:
-    """The best sampled clearance per extent among the draws of a loop ``(6, 8)``: cheap, an
-    upper bound of what :func:`screen` finds, to order loops before screening them."""
-    search = Search(joint_factors, fixed, in_unit)
-    return float(_draws(search, LoopMotions(search.jf), seed)[2].max())
-
-
-def screen(search: Search, lp: LoopMotions, seed: int = 0
-           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Up to :data:`EXACT` drawn collision-free thin polylines of the loop of ``search``
-    (motions ``lp``), best first: integer shifts ``(C, 6)`` (steps of ``l / FINE_P``),
-    vertices ``(C, 6, 3)`` and scores ``(C,)``: exact clearance per extent. The draws are
-    ranked by their sampled clearance (cheap), the :data:`CHECKED` best get the exact thin
-    check, the first :data:`EXACT` free ones their exact clearance. Held vertices (the
-    design's ``fixed``) are not shifted."""
-    tau, polys, sampled = _draws(search, lp, seed)
     extent = np.ptp(polys, axis=1).max(axis=1)
-    keep = np.argsort(-sampled, kind="stable")[:CHECKED]
-    keep = keep[~colliding_polylines(lp.thin, polys[keep])][:EXACT]
-    score = exact_clearance(lp, polys[keep]) / extent[keep]
-    order = keep[np.argsort(-score, kind="stable")]
-    return tau[order], polys[order], np.sort(score)[::-1]
+    return Draws(search, lp, tau, polys, extent, sampled_clearance(lp, polys) / extent)
 
 
-def realize_roomy(joint_factors: np.ndarray, fixed: dict[int, float] | None, in_unit: float,
-                  *, pin: float, tries: int = 4, seed: int = 0) -> Realization:
+def screen(d: Draws) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Up to :data:`EXACT` of the drawn thin polylines ``d``, collision-free, best first:
+    their indices ``(C,)`` into ``d``, scores ``(C,)`` (exact clearance per extent). The
+    draws are ranked by their sampled clearance (cheap), the :data:`CHECKED` best get the
+    exact thin check, the first :data:`EXACT` free ones their exact clearance."""
+    keep = np.argsort(-d.sampled, kind="stable")[:CHECKED]
+    keep = keep[~colliding_polylines(d.lp.thin, d.polys[keep])][:EXACT]
+    score = exact_clearance(d.lp, d.polys[keep]) / d.extent[keep]
+    order = np.argsort(-score, kind="stable")
+    return keep[order], score[order]
+
+
+def realize_roomy(d: Draws, *, pin: float, tries: int = 4) -> Realization:
     """A certified realization (:class:`Realization`, as :func:`realize.realize`'s) of the
-    loop ``joint_factors`` ``(6, 8)`` on one of the ``tries`` best screened polylines, with
-    joint offsets ``d = pin x`` the polyline's extent; raises :class:`RealizationError`
-    (``cap-reached``) when none of them is certified."""
-    search = Search(joint_factors, fixed, in_unit)
-    tau, polys, score = screen(search, LoopMotions(search.jf), seed)
-    for k in range(min(tries, len(tau))):
-        if not score[k] > 0:
+    loop of ``d`` on one of the ``tries`` best screened polylines, with joint offsets
+    ``d = pin x`` the polyline's extent; raises :class:`RealizationError` (``cap-reached``)
+    when none of them is certified."""
+    search = d.search
+    index, score = screen(d)
+    for k, sc in zip(index[:tries], score[:tries], strict=True):
+        if not sc > 0:
             break
-        extent = float(np.ptp(polys[k], axis=0).max())
-        d = pin * extent
-        rho = min(RHO_SHARE * score[k] * extent, d / 2)
-        real = search.run_hint(tau[k], None, p=FINE_P, rho=rho * search.unit,
-                               d=d * search.unit, d_fraction=0.0, rho_fraction=0.0,
-                               max_k=int(np.abs(tau[k]).max()) or 1,
+        sep = pin * d.extent[k]
+        rho = min(RHO_SHARE * sc * d.extent[k], sep / 2)
+        real = search.run_hint(d.tau[k], None, p=FINE_P, rho=rho * search.unit,
+                               d=sep * search.unit, d_fraction=0.0, rho_fraction=0.0,
+                               max_k=int(np.abs(d.tau[k]).max()) or 1,
                                refutations=REFUTATIONS)
         if real is not None:
             return real
