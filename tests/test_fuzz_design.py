@@ -376,10 +376,24 @@ def test_fuzz_magnitudes_solved(data):
     check_solved(data)
 
 
+@functools.cache
+def sigint_run() -> float:
+    """Seconds of an uninterrupted :data:`SIGINT_ARGV` run after the interpreter's start-up."""
+    with tempfile.TemporaryDirectory() as tmp:
+        t0 = time.perf_counter()
+        subprocess.run([sys.executable, "-m", "app.cli.main", *SIGINT_ARGV, "-o", tmp + "/o"],
+                       check=True, capture_output=True, cwd=ASSETS.parents[1])
+        return time.perf_counter() - t0 - interpreter_start()
+
+
 def test_fuzz_sigint_at_random_moments():
+    """Three random moments, and four around the run's end: a press while the interpreter
+    shut down once killed a complete run by SIGINT's default action (exit -2, no message)."""
     rng = random.Random(0)
-    for _ in range(3):
-        check_sigint(rng.uniform(0.0, 1.7))
+    run = sigint_run()
+    for delay in [rng.uniform(0.0, run) for _ in range(3)] + [run * f for f in
+                                                              (0.9, 0.95, 1.0, 1.05)]:
+        check_sigint(delay)
 
 
 @FAST
@@ -415,4 +429,4 @@ def test_fuzz_slow_tier():
             lambda data: check_solved(data, realize=True)))()
     rng = random.Random()
     for _ in range(20):
-        check_sigint(rng.uniform(0.0, 2.7))
+        check_sigint(rng.uniform(0.0, 1.1 * sigint_run()))

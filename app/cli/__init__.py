@@ -12,5 +12,12 @@ import sys
 
 #: SIGINTs noted before :func:`app.cli.main.main` installed its handler (console script only)
 EARLY_INTERRUPTS: list[int] = []
-if os.path.basename(sys.argv[0]) == "paraloop":
+
+
+def note_interrupts() -> None:
+    """Note SIGINTs in :data:`EARLY_INTERRUPTS` instead of raising (outside :func:`main`)."""
     signal.signal(signal.SIGINT, lambda signum, frame: EARLY_INTERRUPTS.append(signum))
+
+
+if os.path.basename(sys.argv[0]) == "paraloop":
+    note_interrupts()

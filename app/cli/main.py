@@ -17,8 +17,10 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import signal
 import sys
 from types import ModuleType
+from typing import NoReturn
 
 from app import cli
 from app.cli import outputs
@@ -138,5 +140,16 @@ def main(argv: list[str] | None = None) -> int:
         outputs.restore_interrupts()
 
 
+def console() -> NoReturn:
+    """The ``paraloop`` script: :func:`main`, then Ctrl-C ignored. The outcome is decided and
+    written by then; a press while the interpreter shuts down would otherwise end it by the
+    default action (exit -2, no message) after a complete run. Outside :func:`main` a press
+    is only noted (:func:`app.cli.note_interrupts`), never a traceback."""
+    cli.note_interrupts()
+    code = main()
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    sys.exit(code)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    console()
