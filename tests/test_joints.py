@@ -13,7 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from paraloop_core.errors import FabricationError
-from paraloop_core.fabrication import joints, profiles
+from paraloop_core.fabrication import csg, joints, parts, profiles
 from paraloop_core.linkage import loops
 
 GENERIC = profiles.PRINTERS["generic"]
@@ -31,9 +31,11 @@ def pin(kind: str, length: float = 10.0, boss: float = 6.0, rod_side: int | None
 
 
 def held(j: joints.Joint) -> tuple[float, float]:
-    """Length (mm) of the axle each boss holds (its whole length: the hardware sits outside),
-    from the boss ranges."""
-    return (j.lower[1] - j.lower[0], j.upper[1] - j.upper[0])
+    """Length (mm) of the axle each boss holds: the boss ranges, less what of them the axle
+    piece does not reach (a dowel's blind floor)."""
+    (axle,) = [p for p in j.pieces if p.role in ("screw", "pin", "rod", "dowel")]
+    return (min(j.lower[1], axle.s1) - max(j.lower[0], axle.s0),
+            min(j.upper[1], axle.s1) - max(j.upper[0], axle.s0))
 
 
 KINDS = [("m3", None), ("m4", None), ("printed-pin", None), ("rod", 0), ("rod", 1)]
@@ -58,7 +60,45 @@ def test_each_boss_holds_two_diameters(kind, side, length):
 def test_every_joint_of_the_sized_loops_is_engaged(kind):
     for j in F.plan(kind).layouts:
         assert min(held(j)) >= profiles.ENGAGE_TARGET * j.axle_d - 1e-9
-        assert j.kind == kind and j.boss_radius >= joints.min_boss_radius(kind, GENERIC)
+        assert j.kind in (kind, "dowel")
+        assert j.boss_radius >= joints.min_boss_radius(kind, GENERIC)
+
+
+@pytest.mark.parametrize("kind", ["m2", "m3", "m4"])
+@pytest.mark.parametrize("side", [0, 1])
+def test_a_bar_leaving_past_a_boss_gets_a_dowel_in_a_blind_bore(kind, side):
+    """Link j's (side 0) or link j+1's bar leaves along the axis past its boss's outer face:
+    a screw's head or nut would sit inside that bar. The joint becomes a dowel of the screw's
+    diameter held in a blind bore of that link (a wall-thick floor, nothing cut beyond it:
+    the bar goes on whole), turning in the other link, capped there; both hold 2 diameters."""
+    f = profiles.FASTENERS[kind]
+    along = np.array([3.0, 0.0, 80.0]) * (1 if side else -1)
+    bars = (along, np.array([0, 40.0, 0])) if side == 0 else (np.array([-40.0, 0, 0]), along)
+    j = joints.layout(0, np.zeros(3), 12 * Z, Z, bars, (5.0, 5.0), 7.0, kind, GENERIC,
+                      eps=0.05)
+    assert (j.kind, j.rod_side, j.axle_d, j.screw_mm) == ("dowel", side, f.d_mm, None)
+    (axle,) = [p for p in j.pieces if p.role == "dowel"]
+    (cap,) = [p for p in j.pieces if p.printed]
+    assert cap.role == "dowel cap" and cap.radius <= f.reach_r_mm + 0.6
+    boss = j.upper if side else j.lower
+    floor = boss[1] - axle.s1 if side else axle.s0 - boss[0]
+    assert floor >= GENERIC.wall_mm
+    assert min(held(j)) >= profiles.ENGAGE_TARGET * f.d_mm - 1e-9
+    assert j.bore[side] == pytest.approx(f.d_mm / 2)  # glued / pressed
+    assert j.bore[1 - side] > f.d_mm / 2 + GENERIC.clearance_mm - 1e-9  # turns
+    # the cap sits past the other link's outer face, the dowel reaches into it
+    if side == 0:
+        assert cap.s0 > j.upper[1] and axle.s1 > cap.s0 + 2.0
+    else:
+        assert cap.s1 < j.lower[0] and axle.s0 < cap.s1 - 2.0
+    # the fixed link's hole ends at the floor: nothing past its outer face
+    hole = csg.manifold(parts.holes(j, bool(side), 30.0)).bounding_box()
+    if side == 0:
+        assert hole[2] == pytest.approx(axle.s0)
+    else:
+        assert hole[5] == pytest.approx(axle.s1)
+    # crossing bars (the usual case) keep the screw
+    assert pin(kind, 12.0).kind == kind
 
 
 def test_the_grounded_joint_holds_the_rod():

@@ -33,7 +33,9 @@ def test_parts_are_valid_watertight_one_piece_solids(which):
     if which == "printed-pin":
         assert roles.count("pin") == 6 and roles.count("cap") == 6
     if which == "grounded":
-        assert roles.count("base") == 1 and roles.count("cap") == 1  # the plate, the rod cap
+        # the plate, the rod cap and a cap per dowel
+        dowels = sum(j.kind == "dowel" for j in asm.joints)
+        assert roles.count("base") == 1 and roles.count("cap") == 1 + dowels
     for p in asm.parts:
         assert p.manifold.status() == m3d.Error.NoError and not p.manifold.is_empty()
         tm = F.mesh_of(p.manifold)
@@ -108,7 +110,9 @@ def test_bores_keep_the_profile_wall(which):
         tris = F.mesh_of(p.manifold).triangles
         for j, upper in _sides(asm, p.link):
             s0, s1 = j.upper if upper else j.lower
-            held = (s0, s1)
+            # where the axle is: a dowel's blind bore ends at its floor
+            (axle,) = [q for q in j.pieces if q.role in ("screw", "pin", "rod", "dowel")]
+            held = (max(s0, axle.s0), min(s1, axle.s1))
             bore = j.bore[1 if upper else 0]
             down = p.down - (p.down @ j.w) * j.w
             dirs = np.vstack([_radial(j, np.arange(16) * np.pi / 8 + 0.0123),
@@ -129,6 +133,8 @@ def test_screw_bores_run_plain_to_faces_the_washers_bear_on():
     phi = np.arange(24) * np.pi / 12 + 0.0123
     for j in asm.joints:
         lower, upper = asm.parts[j.index], asm.parts[(j.index + 1) % 6]
+        if j.kind == "dowel":  # test_dowel_bores_are_blind_where_the_bar_runs_on
+            continue
         for part, upper_side in ((lower, False), (upper, True)):
             tris = F.mesh_of(part.manifold).triangles
             bore = j.bore[1 if upper_side else 0]
@@ -143,6 +149,25 @@ def test_screw_bores_run_plain_to_faces_the_washers_bear_on():
                 start = j.at(face) - 0.5 * out + ring * d  # inside the wall, under the face
                 assert F.ray_hits(tris, start, out)[0] == pytest.approx(0.5, abs=1e-3), (
                     part.name, j.index)
+
+
+def test_dowel_bores_are_blind_where_the_bar_runs_on():
+    """A dowel joint (its holding link's bar runs on past the boss): from inside the holding
+    link's bore, along the axis outwards, material begins at the dowel's end (the blind
+    floor) and goes on at least the printer's wall: nothing is cut through the bar there."""
+    asm = F.assembly("m3")
+    dowels = [j for j in asm.joints if j.kind == "dowel"]
+    assert dowels, "the fixture's loop has a bar leaving along a joint axis"
+    for j in dowels:
+        side = j.rod_side
+        part = asm.parts[(j.index + side) % 6]
+        (axle,) = [q for q in j.pieces if q.role == "dowel"]
+        out = j.w if side == 1 else -j.w
+        end = axle.s1 if side == 1 else axle.s0
+        start = j.at(end - 1.0 * (out @ j.w))  # 1 mm inside the bore
+        hits = F.ray_hits(F.mesh_of(part.manifold).triangles, start, out)
+        assert hits[0] == pytest.approx(1.0, abs=1e-3), (part.name, j.index)
+        assert len(hits) == 1 or hits[1] - hits[0] >= asm.printer.wall_mm, (part.name, hits)
 
 
 @pytest.mark.parametrize("which", ASSEMBLIES)

@@ -124,8 +124,8 @@ def test_min_radii_and_caps(bounds):
     assert aims == pytest.approx(np.maximum.reduce([np.full(6, 7.0 / SQ3), length / (25 * SQ3),
                                                     np.full(6, flat)]))
     floors = sizing.min_radii(bounds, k, GENERIC, "m3", 1)
-    assert floors == pytest.approx(np.maximum.reduce([np.full(6, 6.0 / SQ3),
-                                                      length / (30 * SQ3), np.full(6, flat)]))
+    assert floors == pytest.approx(np.maximum.reduce([np.full(6, 6.4 / SQ3),
+                                                      length / (28 * SQ3), np.full(6, flat)]))
     assert sizing.min_radii(bounds, k, GENERIC, "m3", 3) == pytest.approx(np.full(6, flat))
     assert [sizing.bar_cap(s) for s in (100.0, 200.0, 250.0, 400.0)] == pytest.approx(
         [4.5, 5.6, 7.0, 8.0])

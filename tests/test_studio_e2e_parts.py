@@ -13,10 +13,12 @@ Skipped when chromium or playwright is missing, except under ``CI=true`` where t
 from __future__ import annotations
 
 import io
+import zipfile
 from pathlib import Path
 
 import numpy as np
 import pytest
+import scipy.spatial
 import trimesh
 from PIL import Image
 
@@ -136,9 +138,13 @@ def test_printed_parts_fill_the_opening_view_and_match_the_export(browser, reado
 
 def same_as_export(app, parts) -> None:
     """The parts *Export all* writes are the scene's: per link the volume and, for a link of
-    one part, its oriented box against the scene's meshes scaled by the export's mm per
-    unit."""
-    _, _, report = export_zip(app.solution, app.state.fab)
+    one part, the scene's mesh scaled by the export's mm per unit is the exported STL's
+    tessellation (every 50th vertex within 0.01 mm of one of the STL's; the scene's vertices
+    are float32. An
+    oriented box was compared before: trimesh's box search is a heuristic that two such
+    nearly equal meshes can send to boxes 3 % apart)."""
+    _, data, report = export_zip(app.solution, app.state.fab)
+    stls = zipfile.ZipFile(io.BytesIO(data))
     scale = report["scale_mm_per_unit"]
     assert scale == pytest.approx(parts.scale, rel=1e-9)
     ground = report["base"]["grounded_link"] if report.get("base") else 0
@@ -153,5 +159,7 @@ def same_as_export(app, parts) -> None:
         volume = sum(p["volume_cm3"] for p in exported) * 1e3
         assert mesh.volume == pytest.approx(volume, rel=0.01), link
         if len(exported) == 1:
-            box = np.sort(mesh.bounding_box_oriented.primitive.extents)
-            assert box == pytest.approx(exported[0]["obb_extents_mm"], rel=0.02), link
+            stl = trimesh.load(io.BytesIO(stls.read(f"{exported[0]['name']}.stl")),
+                               file_type="stl")
+            off = scipy.spatial.cKDTree(stl.vertices).query(mesh.vertices[::50])[0]
+            assert off.max() < 0.01, (link, off.max())

@@ -101,7 +101,7 @@ def summary_line(report: dict) -> str:
     sz, v, b = report["sizing"], report["verification"], report.get("base")
     widths = sz["bar_width_mm"]
     mass = sum(p["mass_g"] for p in report["parts"])
-    kinds = [j["kind"] for j in report["joints"] if j["kind"] != "rod"]
+    kinds = [j["kind"] for j in report["joints"] if j["kind"] not in ("rod", "dowel")]
     kind = max(set(kinds), key=kinds.count) if kinds else "rod"
     hardware = {"m2": "M2 screws", "m3": "M3 screws", "m4": "M4 screws",
                 "printed-pin": "printed pins"}.get(kind, kind)

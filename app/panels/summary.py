@@ -37,10 +37,12 @@ def hardware_text(report: dict) -> str:
     """The joints' hardware in words, e.g. ``'5 M3 x 45 mm screws with lock nuts and washers,
     a 6 mm steel rod as the column'`` (a report's ``joints`` and ``base``)."""
     screws: Counter = Counter()
-    pins = 0
+    pins = dowels = 0
     for j in report["joints"]:
         if j["kind"] in profiles.FASTENERS:
             screws[(profiles.FASTENERS[j["kind"]].name, j["screw_length_mm"])] += 1
+        elif j["kind"] == "dowel":
+            dowels += 1
         elif j["kind"] != "rod":
             pins += 1
     parts = []
@@ -49,6 +51,8 @@ def hardware_text(report: dict) -> str:
         parts.append(" and ".join(sizes) + " screws with lock nuts and washers")
     if pins:
         parts.append(f"{pins} printed pin{'s' * (pins > 1)} with caps")
+    if dowels:
+        parts.append(f"{dowels} steel dowel{'s' * (dowels > 1)} with printed caps")
     base = report.get("base")
     if base is not None and any(j["kind"] == "rod" for j in report["joints"]):
         parts.append(f"a {base['rod']} as axle and column")

@@ -32,7 +32,7 @@ import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
 from paraloop_core.algebra import dq, poly
-from paraloop_core.fabrication import csg, parts, profiles
+from paraloop_core.fabrication import bed, csg, parts, profiles
 from paraloop_core.fabrication.assembly import Assembly, Hardware
 from paraloop_core.fabrication.parts import Part
 from paraloop_core.fabrication.profiles import Rod
@@ -352,8 +352,8 @@ def final(asm: Assembly, b: Base, density_g_cm3: float, samples: int = 720) -> B
 
 
 def plate_room(bed_mm: tuple[float, float, float]) -> float:
-    """Largest plate radius (mm) a bed holds, 5 mm from its edges."""
-    return min(bed_mm[0], bed_mm[1]) / 2 - 5.0
+    """Largest plate radius (mm) a bed holds, :data:`bed.EDGE_MM` from its edges."""
+    return float(min(bed.room_xy(bed_mm))) / 2
 
 
 def refit(b: Base, rod: Rod, wall_mm: float, bed_mm: tuple[float, float, float]
@@ -424,7 +424,7 @@ def to_dict(b: Base, bed_mm: tuple[float, float, float]) -> dict:
             "plate_diameter_mm": 2 * b.radius, "plate_thickness_mm": b.thickness,
             "com_margin_mm": b.margin_mm, "com_margin_share": b.margin_mm / (2 * b.radius),
             "stands": b.stands, "mount": b.mount,
-            "fits_bed": bool(2 * b.radius <= min(bed_mm[:2]) - 10.0),
+            "fits_bed": bool(b.radius <= plate_room(bed_mm)),
             "masses_g": b.masses_g.tolist(),
             "method": f"the sculpture stands with its rod vertical; centre of mass of the "
                       f"links, hardware, rod and plate at {SAMPLES} evenly spaced points of "

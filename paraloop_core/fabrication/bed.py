@@ -1,7 +1,9 @@
 """Fitting parts on a printer's bed: box footprints turned about the vertical.
 
 A long thin part that does not fit the bed square-on may fit diagonally; a part may rest on any
-face of its box.
+face of its box. Parts are fitted to the bed less an :data:`EDGE_MM` border (many printers
+cannot print at the very edge, and a part filling the bed to the last millimetre is one a
+slicer's skirt or a slightly off homing pushes over it).
 """
 
 from __future__ import annotations
@@ -13,6 +15,14 @@ from paraloop_core.fabrication.profiles import Printer
 #: Turns about the vertical (radians, 0.5 degree steps) tried for a footprint: a long thin
 #: part that does not fit the bed square-on may fit diagonally.
 TURNS = np.radians(np.arange(0.0, 90.01, 0.5))
+#: Border (mm) kept free along the bed's edges (and the layout's gap between parts).
+EDGE_MM = 5.0
+
+
+def room_xy(bed_mm: tuple[float, ...] | np.ndarray) -> np.ndarray:
+    """``(2,)`` the part of a bed ``bed_mm`` (x, y, z) parts may occupy (mm): less
+    :data:`EDGE_MM` on every side."""
+    return np.asarray(bed_mm, float)[:2] - 2 * EDGE_MM
 
 
 def footprint_turn(size_xy: np.ndarray, bed_xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -37,7 +47,7 @@ def fit_factor(extents_mm: np.ndarray, printer: Printer) -> np.ndarray:
     best = np.zeros(ext.shape[:-1])
     for up in range(3):  # which box side stands vertical
         flat = np.delete(ext, up, axis=-1)
-        f, _ = footprint_turn(flat, bed[:2])
+        f, _ = footprint_turn(flat, room_xy(bed))
         best = np.maximum(best, np.minimum(f, bed[2] / np.maximum(ext[..., up], 1e-12)))
     return best
 
@@ -47,7 +57,7 @@ def laid_fit_factor(extents_mm: np.ndarray, printer: Printer) -> np.ndarray:
     only turned about the vertical, not stood on another side)."""
     ext = np.asarray(extents_mm, float)
     bed = np.asarray(printer.bed_mm, float)
-    f, _ = footprint_turn(ext[..., :2], bed[:2])
+    f, _ = footprint_turn(ext[..., :2], room_xy(bed))
     return np.minimum(f, bed[2] / np.maximum(ext[..., 2], 1e-12))
 
 

@@ -86,6 +86,10 @@ def bill_of_materials(asm: Assembly, material: profiles.Material) -> list[dict]:
             hw[f"{f.name} x {j.screw_mm:g} mm socket head cap screw (ISO 4762)"] += 1
             hw[f"{f.name} nylon-insert lock nut (DIN 985)"] += 1
             hw[f"{f.name} washer (ISO 7089, {f.washer_d_mm:g} x {f.washer_t_mm:g} mm)"] += 3
+        elif j.kind == "dowel":
+            (axle,) = [p for p in j.pieces if p.role == "dowel"]
+            hw[f"{j.axle_d:g} mm steel dowel pin (ISO 8734) or rod, {axle.s1 - axle.s0:.0f} mm "
+               "long"] += 1
     rows = [{"item": k, "quantity": v, "for": "joints"} for k, v in sorted(hw.items())]
     for h in asm.hardware:
         if h.role.endswith(" rod"):
@@ -94,9 +98,12 @@ def bill_of_materials(asm: Assembly, material: profiles.Material) -> list[dict]:
             rows.append({"item": f"{h.role}, cut to {np.ceil(length):.0f} mm",
                          "quantity": 1, "for": f"the grounding column and axle of joint "
                                                f"{joint}"})
-    if any(j.kind == "rod" for j in asm.joints):
+    glued = [w for w, k in (("the rod in the grounded link, the base and its cap", "rod"),
+                            ("the dowels in their blind bores and their caps", "dowel"))
+             if any(j.kind == k for j in asm.joints)]
+    if glued:
         rows.append({"item": "two-part epoxy or cyanoacrylate glue", "quantity": 1,
-                     "for": "the rod in the grounded link, the base and its cap"})
+                     "for": "; ".join(glued)})
     printed = Counter(p.role for p in asm.parts)
     for role, n in sorted(printed.items()):
         rows.append({"item": f"printed {role}" + ("s" if n > 1 else ""), "quantity": n,

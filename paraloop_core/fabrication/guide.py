@@ -30,6 +30,13 @@ def _joint_text(j, kind: str, first: int) -> str:
         return (f"Joint {a} joins link {a} and link {b}: push the printed pin_{a} through "
                 f"link {a} (head side) and link {b}, then press the printed pin cap onto its "
                 "end (a drop of glue if it is loose). The joint must turn freely.")
+    if kind == "dowel":
+        fixed, free = (a, b) if j.rod_side == 0 else (b, a)
+        return (f"Joint {a} joins link {a} and link {b} on a {j.axle_d:g} mm steel dowel: "
+                f"link {fixed}'s bar runs on past this joint, so no screw fits. Glue the dowel "
+                f"into the blind bore of link {fixed} (to its floor), slide link {free} on, "
+                "then glue the printed dowel cap onto the dowel's end, leaving the joint free "
+                f"to turn (no glue on link {free}).")
     return (f"Joint {a} joins link {a} and link {b} on the rod (the grounding column): glue "
             f"the rod into link {first}'s boss (the grounded link), slide the other link on, "
             "then glue the rod cap onto the rod's end, leaving the joint free to turn.")
@@ -63,12 +70,11 @@ def guide_text(asm, report: dict, material: profiles.Material, pictures: dict[st
         summary.append(f"Motor (optional): on joint {d['motor']}, at least "
                        f"{d['peak_torque_n_m']:.2f} N m against gravity.")
     steps = []
-    kind = report["joints"][0]["kind"]
     grounded = None if b is None else b["grounded_link"]
     order = [j for j in asm.joints if j.kind != "rod"] + [j for j in asm.joints
                                                           if j.kind == "rod"]
     for k, j in enumerate(order):
-        text = _joint_text(j, j.kind if j.kind == "rod" else kind, grounded or 0)
+        text = _joint_text(j, j.kind, grounded or 0)
         if k == len(order) - 1 and j.kind != "rod":
             text += " This closes the loop: turn the links until the holes line up."
         steps.append((text, pictures.get(f"joint_{j.index}")))

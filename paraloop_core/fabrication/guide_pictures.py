@@ -301,8 +301,9 @@ def _groups(asm: Assembly, jt, meshes: dict, world: np.ndarray
     far = [Piece(f"link {b}", meshes[f"link_{b}"], _rgb(LINK_COLORS[b]), alpha=0.45)]
     groups: list[tuple[list[Piece], float]] = [(near, 0.0), (far, pull)]
     names = {"screw": "screw", "screw head": "", "lock nut": "lock nut",
-             "thrust washer": "washer"}
-    axle = [h for h in hard if h.role in ("screw", "screw head") or h.role.endswith(" rod")]
+             "thrust washer": "washer", "dowel": "dowel"}
+    axle = [h for h in hard if h.role in ("screw", "screw head", "dowel")
+            or h.role.endswith(" rod")]
     if axle:
         groups.insert(0, ([Piece(names.get(h.role, "rod"), _tm(h.solid), PIN_COLOR,
                                  focus=h.role != "screw head") for h in axle],

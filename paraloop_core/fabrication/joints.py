@@ -19,6 +19,11 @@ Joint j (axis ``A_j``) joins link j (its bar ends at ``E_j``) and link j+1 (its 
   :data:`PROTRUDE_MM`;
 * kind ``printed-pin``: a printed pin (head + shaft) through both bosses, a printed cap
   pressed on its end;
+* kind ``dowel`` (chosen by :func:`layout` for a screw joint where one link's bar leaves
+  past its boss's outer face, :func:`blocked_sides`: the head or nut would sit inside that
+  bar): a steel dowel (the screw's diameter) glued into a blind bore of that link's boss (its
+  floor keeps a wall, so the bar goes on whole), turning in the other link's bore, held by a
+  printed cap glued on its end outside the other boss;
 * kind ``rod``: the grounded joint: the grounding rod is the axle, fixed (press fit, glued) in
   the grounded link's boss, turning in the other link's boss, held by a printed cap glued on
   its end (or, where the other link's bar leaves past that end, ending inside the boss: the
@@ -85,7 +90,8 @@ class Joint:
     axle_d: float
     screw_mm: float | None
     notch: tuple[float, float]
-    #: the side the grounding rod leaves from (0: past link j's boss, 1: past link j+1's)
+    #: kinds ``rod`` and ``dowel``: the side whose link holds the axle fixed (0: link j,
+    #: 1: link j+1); the grounding rod leaves to the base past that link's boss
     rod_side: int | None = None
 
     def at(self, s: float | np.ndarray) -> np.ndarray:
@@ -94,8 +100,12 @@ class Joint:
 
     @property
     def engagement(self) -> tuple[float, float]:
-        """Length (mm) of the axle held in each boss."""
-        return self.lower[1] - self.lower[0], self.upper[1] - self.upper[0]
+        """Length (mm) of the axle held in each boss (a blind bore's floor and an axle ending
+        inside a boss hold nothing there)."""
+        axle = next((p for p in self.pieces if p.role in ("screw", "pin", "rod", "dowel")),
+                    None)
+        lo, hi = (-np.inf, np.inf) if axle is None else (axle.s0, axle.s1)
+        return tuple(max(0.0, min(b, hi) - max(a, lo)) for a, b in (self.lower, self.upper))
 
     @property
     def extent(self) -> tuple[float, float]:
@@ -125,12 +135,13 @@ def axle_diameter(kind: str, rod: Rod | None = None) -> float:
     return fastener_of(kind).d_mm
 
 
-def bore_radius(kind: str, printer: Printer, rod: Rod | None = None, fixed: bool = False
-                ) -> float:
-    """Radius (mm) of the bore a joint ``kind``'s axle turns in (``fixed``: the grounded
-    link's bore, a press fit on the rod: printed holes come out small, so nominal size)."""
-    if kind == "rod":
-        d = axle_diameter(kind, rod)
+def bore_radius(kind: str, printer: Printer, rod: Rod | None = None, fixed: bool = False,
+                d: float | None = None) -> float:
+    """Radius (mm) of the bore a joint ``kind``'s axle turns in (``fixed``: the bore the rod
+    or dowel is held in, a press fit: printed holes come out small, so nominal size; ``d``
+    the dowel's diameter)."""
+    if kind in ("rod", "dowel"):
+        d = axle_diameter(kind, rod) if kind == "rod" else float(d)
         return d / 2 if fixed else d / 2 + printer.clearance_mm + printer.hole_allowance_mm / 2
     if kind == "printed-pin":
         return profiles.PRINTED_PIN_D_MM / 2 + printer.clearance_mm + \
@@ -161,6 +172,17 @@ def outward(bar: np.ndarray, away: np.ndarray, r: float, within: float) -> float
     return a * min(n, (within + r) / max(q, 1e-12)) + r * q
 
 
+def blocked_sides(bars: tuple[np.ndarray, np.ndarray], w: np.ndarray,
+                  faces: tuple[float, float], within: float) -> tuple[bool, bool]:
+    """Whether the centre line of link j's bar (``bars[0]``, from ``E_j``) and of link j+1's
+    (``bars[1]``, from ``S_{j+1}``) is still within ``within`` mm of the axis (unit ``w``)
+    half a millimetre past its boss's outer face (``faces`` mm past the joint point): the
+    hardware there would sit inside the bar, cutting its core (a bar leaning outwards only
+    has a notch for it in its side)."""
+    return (outward(bars[0], -w, 0.0, within) > faces[0] + 0.5,
+            outward(bars[1], w, 0.0, within) > faces[1] + 0.5)
+
+
 def split_point(length: float, lower: np.ndarray, upper: np.ndarray, w: np.ndarray,
                 radii: tuple[float, float], boss: float, gap: float, eps: float
                 ) -> tuple[float, tuple[float, float]]:
@@ -179,6 +201,19 @@ def split_point(length: float, lower: np.ndarray, upper: np.ndarray, w: np.ndarr
     return m, (max(0.0, lo - m), max(0.0, m - hi))
 
 
+def _bosses(length: float, bars: tuple[np.ndarray, np.ndarray], w: np.ndarray,
+            radii: tuple[float, float], boss: float, gap: float, eps: float, d: float,
+            floors: tuple[float, float]) -> tuple[float, tuple[float, float], float, float]:
+    """``(split, notch, o_lo, o_up)`` of a joint (:func:`layout`): each boss holds its axle
+    over :data:`profiles.ENGAGE_TARGET` diameters past its blind ``floors`` (mm) and covers
+    most of its bar's end (what stands out past the face is trimmed off)."""
+    m, notch = split_point(length, bars[0], bars[1], w, radii, boss, gap, eps)
+    want = profiles.ENGAGE_TARGET * d
+    o_lo = max(want + floors[0] - (m - gap / 2), MIN_OUTER_MM, COVER * radii[0])
+    o_up = max(want + floors[1] - (length - m - gap / 2), MIN_OUTER_MM, COVER * radii[1])
+    return m, notch, o_lo, o_up
+
+
 def layout(index: int, origin: np.ndarray, far: np.ndarray, axis: np.ndarray,
            bars: tuple[np.ndarray, np.ndarray], radii: tuple[float, float], boss: float,
            kind: str, printer: Printer, *, eps: float, rod: Rod | None = None,
@@ -186,8 +221,9 @@ def layout(index: int, origin: np.ndarray, far: np.ndarray, axis: np.ndarray,
     """Layout of joint ``index`` (module docstring) between ``origin = E_j`` and ``far =
     S_{j+1}`` (mm), ``axis`` the joint axis (used when the two points coincide), ``bars``
     link j's bar from ``E_j`` and link j+1's from ``S_{j+1}`` (vectors, mm), their hex
-    ``radii``, the ``boss`` radius; ``rod_side`` (kind ``rod``): where the rod goes on to the
-    base (0: beyond link j's boss, 1: beyond link j+1's). Raises :class:`FabricationError`
+    ``radii``, the ``boss`` radius (a screw joint one of whose bars leaves past its boss's
+    outer face is laid out as a ``dowel``); ``rod_side`` (kind ``rod``): where the rod goes on
+    to the base (0: beyond link j's boss, 1: beyond link j+1's). Raises :class:`FabricationError`
     for a boss too thin for its axle or a screw longer than stock."""
     if kind not in (*profiles.JOINT_KINDS, "rod") or kind == "print-in-place":
         raise FabricationError(f"joint kind {kind!r} cannot be laid out", "bad-parameters")
@@ -199,14 +235,22 @@ def layout(index: int, origin: np.ndarray, far: np.ndarray, axis: np.ndarray,
         raise FabricationError(f"joint {index}: boss radius {boss:.2f} mm is under the "
                                f"{min_boss_radius(kind, printer, rod):.2f} mm its axle needs",
                                "bad-parameters")
-    gap = fastener_of(kind).washer_t_mm if kind in profiles.FASTENERS else printer.clearance_mm
-    m, notch = split_point(length, bars[0], bars[1], w, radii, boss, gap, eps)
     d = axle_diameter(kind, rod)
-    want = profiles.ENGAGE_TARGET * d
-    # each boss holds its axle over ``want`` and covers most of its bar's end (what stands
-    # out past the face is trimmed off)
-    o_lo = max(want - (m - gap / 2), MIN_OUTER_MM, COVER * radii[0])
-    o_up = max(want - (length - m - gap / 2), MIN_OUTER_MM, COVER * radii[1])
+    gap = fastener_of(kind).washer_t_mm if kind in profiles.FASTENERS else printer.clearance_mm
+    m, notch, o_lo, o_up = _bosses(length, bars, w, radii, boss, gap, eps, d, (0.0, 0.0))
+    if kind in profiles.FASTENERS:
+        # a dowel's cap: as wide as the washer it replaces, and a wall around its hole
+        cap_r = max(fastener_of(kind).reach_r_mm, d / 2 + 0.05 + printer.wall_mm + BOSS_ROOM_MM)
+        blocked = blocked_sides(bars, w, (o_lo, o_up), cap_r + SEAT_MM + eps)
+        if sum(blocked) == 1:  # the head or nut would sit inside that bar: a dowel instead
+            kind, rod_side, cap = "dowel", blocked.index(True), True
+            gap = printer.clearance_mm
+    # a dowel's blind bore leaves a floor of a wall under the fixed link's outer face
+    floor = printer.wall_mm + BOSS_ROOM_MM if kind == "dowel" else 0.0
+    fixed = rod_side or 0
+    if kind == "dowel":
+        m, notch, o_lo, o_up = _bosses(length, bars, w, radii, boss, gap, eps, d,
+                                       (floor, 0.0) if fixed == 0 else (0.0, floor))
     s0, s3 = -o_lo, length + o_up
     screw, pieces = None, []
     c = printer.clearance_mm
@@ -224,21 +268,27 @@ def layout(index: int, origin: np.ndarray, far: np.ndarray, axis: np.ndarray,
                         printed=True)]
     else:  # rod: a cap on the free side's end; beyond the other side it goes on to the base
         head, height = boss - 0.5, profiles.PRINTED_CAP_H_MM
+        if kind == "dowel":
+            head = min(head, cap_r)
         deep = profiles.PRINTED_CAP_DEPTH_MM
+        if kind == "dowel":  # the blind bore's floor instead of the way to the base
+            s0, s3 = (s0 + floor, s3) if fixed == 0 else (s0, s3 - floor)
         if not cap:  # the rod ends 1 mm inside the free boss; the closed loop holds it there
             pieces = [Piece(s0, s3 - 1.0, d / 2, "rod") if (rod_side or 0) == 0 else
                       Piece(s0 + 1.0, s3, d / 2, "rod")]
         elif (rod_side or 0) == 0:
-            pieces = [Piece(s3 + c, s3 + c + height, head, "rod cap", printed=True),
-                      Piece(s0, s3 + c + deep, d / 2, "rod")]
+            pieces = [Piece(s3 + c, s3 + c + height, head, f"{kind} cap", printed=True),
+                      Piece(s0, s3 + c + deep, d / 2, kind)]
         else:
-            pieces = [Piece(s0 - c - height, s0 - c, head, "rod cap", printed=True),
-                      Piece(s0 - c - deep, s3, d / 2, "rod")]
-    fixed = None if kind != "rod" else (rod_side or 0)
-    bores = tuple(bore_radius(kind, printer, rod, fixed == k) for k in (0, 1))
+            pieces = [Piece(s0 - c - height, s0 - c, head, f"{kind} cap", printed=True),
+                      Piece(s0 - c - deep, s3, d / 2, kind)]
+        if kind == "dowel":  # the bosses still span the floors
+            s0, s3 = (s0 - floor, s3) if fixed == 0 else (s0, s3 + floor)
+    held = kind in ("rod", "dowel")
+    bores = tuple(bore_radius(kind, printer, rod, held and fixed == k, d) for k in (0, 1))
     return Joint(index, kind, origin, w, length, m, gap, float(boss), (s0, m - gap / 2),
                  (m + gap / 2, s3), bores, tuple(pieces), d, screw, notch,
-                 None if kind != "rod" else (rod_side or 0))
+                 fixed if held else None)
 
 
 def _screw_pieces(index: int, f: Fastener, s0: float, s3: float, m: float, gap: float
@@ -292,6 +342,8 @@ def to_dict(j: Joint) -> dict:
             "engagement_mm": list(j.engagement),
             "engagement_diameters": [e / j.axle_d for e in j.engagement],
             "notch_mm": list(j.notch), "origin_mm": j.origin.tolist(), "axis": j.w.tolist(),
+            # rod and dowel: the link that holds the axle fixed (glued or pressed in)
+            "fixed_link": None if j.rod_side is None else (j.index + j.rod_side) % 6,
             "pieces": [{"role": p.role, "s_mm": [p.s0, p.s1], "radius_mm": p.radius,
                         "printed": p.printed, "sides": p.sides} for p in j.pieces]}
 

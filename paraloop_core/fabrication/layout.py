@@ -10,8 +10,8 @@
   :data:`OVERHANG_DEG` from the vertical and lies above the first layer; reported per part as
   area and as the share of the part's downward-facing area.
 * **Plates** (:func:`bed_layout`): footprints turned to their smallest box (diagonally where a
-  part needs it), in rows, largest first, :data:`GAP_MM` apart; a new plate when the bed is
-  full.
+  part needs it), in rows, largest first, :data:`GAP_MM` apart and :data:`bed.EDGE_MM` from
+  the bed's edges (the room the sizing fitted them to); a new plate when the bed is full.
 """
 
 from __future__ import annotations
@@ -19,6 +19,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.spatial
 import trimesh
 
 from paraloop_core.errors import FabricationError
@@ -35,7 +36,7 @@ TRIALS = 4
 #: Print flats compete on support only among those at most this many times as high as the
 #: lowest (plus 1 mm).
 TALLER = 1.5
-#: Gap between parts on a plate and to the bed's edge (mm).
+#: Gap between parts on a plate (mm).
 GAP_MM = 5.0
 
 
@@ -132,6 +133,21 @@ def contact_area(mesh: trimesh.Trimesh, rot: np.ndarray) -> float:
     return float(mesh.area_faces[(z < 0.05) & (nz < -1 + 1e-6)].sum())
 
 
+def _turn(xy: np.ndarray, room: np.ndarray) -> np.ndarray:
+    """``(4, 4)`` turn about the vertical of a footprint's points ``xy`` ``(n, 2)`` (mm) that
+    lets it grow the most inside ``room`` ``(2,)``: each of :data:`bed.TURNS` (both senses)
+    measured on the points' hull itself (the sizing judged a box; the points' turned bounds
+    never exceed the turned box's)."""
+    hull = xy[scipy.spatial.ConvexHull(xy).vertices] if len(xy) > 2 else xy
+    turns = np.concatenate([bed.TURNS, -bed.TURNS[1:]])
+    c, s = np.cos(turns), np.sin(turns)
+    x = np.ptp(hull[:, :1] * c - hull[:, 1:] * s, axis=0)
+    y = np.ptp(hull[:, :1] * s + hull[:, 1:] * c, axis=0)
+    best = float(turns[np.argmax(np.minimum(room[0] / np.maximum(x, 1e-12),
+                                            room[1] / np.maximum(y, 1e-12)))])
+    return trimesh.transformations.rotation_matrix(best, [0, 0, 1])
+
+
 def bed_layout(meshes: dict[str, trimesh.Trimesh], downs: dict[str, np.ndarray],
                bed_mm: tuple[float, float, float]) -> list[Placement]:
     """Placements of ``meshes`` (home frame, mm) each resting on ``downs[name]`` on plates of
@@ -145,21 +161,21 @@ def bed_layout(meshes: dict[str, trimesh.Trimesh], downs: dict[str, np.ndarray],
         turn[:2, :2], turn[:2, 3] = to_box[:2, :2], to_box[:2, 2]
         m = turn @ rot
         box = trimesh.transform_points(mesh.vertices, m)
-        room = np.asarray(bed_mm[:2], float) - 2 * GAP_MM
+        room = bed.room_xy(bed_mm)
         if np.any(np.ptp(box[:, :2], axis=0) > room):  # turned (diagonal) if that fits
-            _, angle = bed.footprint_turn(np.ptp(box[:, :2], axis=0), room)
-            m = trimesh.transformations.rotation_matrix(float(angle), [0, 0, 1]) @ m
+            m = _turn(box[:, :2], room) @ m
             box = trimesh.transform_points(mesh.vertices, m)
         m = trimesh.transformations.translation_matrix(-box.min(axis=0)) @ m
         sup, downward = support(mesh.vertices, mesh.faces, downs[name])
         laid[name] = (m, np.ptp(box, axis=0), contact_area(mesh, m), sup, downward)
-    out, plate, x, y, row = [], 0, GAP_MM, GAP_MM, 0.0
+    edge = bed.EDGE_MM
+    out, plate, x, y, row = [], 0, edge, edge, 0.0
     for name in sorted(laid, key=lambda n: -laid[n][1][1]):  # deepest first: even rows
         m, size, contact, sup, downward = laid[name]
-        if x + size[0] > bed_mm[0] - GAP_MM and x > GAP_MM:  # next row
-            x, y, row = GAP_MM, y + row + GAP_MM, 0.0
-        if y + size[1] > bed_mm[1] - GAP_MM and y > GAP_MM:  # next plate
-            plate, x, y, row = plate + 1, GAP_MM, GAP_MM, 0.0
+        if x + size[0] > bed_mm[0] - edge and x > edge:  # next row
+            x, y, row = edge, y + row + GAP_MM, 0.0
+        if y + size[1] > bed_mm[1] - edge and y > edge:  # next plate
+            plate, x, y, row = plate + 1, edge, edge, 0.0
         out.append(Placement(name, plate, trimesh.transformations.translation_matrix(
             [x, y, 0.0]) @ m, float(size[2]), contact, sup, downward, np.array([x, y, 0.0]),
             size))

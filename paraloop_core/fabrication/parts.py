@@ -123,14 +123,18 @@ def holes(j: Joint, upper: bool, far: float, n: int = SEGMENTS) -> csg.Union:
     must run to leave any bar end."""
     lo, hi = j.extent
     bore = j.bore[1 if upper else 0]
+    if j.kind == "dowel" and j.rod_side == int(upper):  # its blind bore: from the floor on
+        floor = j.pieces[-1].s1 if upper else j.pieces[-1].s0  # the dowel's end in it
+        return csg.Union((_axis(j, lo - far, floor, bore, n) if upper else
+                          _axis(j, floor, hi + far, bore, n),))
     cuts = [_axis(j, lo - far, hi + far, bore, n)]
     if j.kind in profiles.FASTENERS:  # washer, head or nut on the outer face, and beyond
         r = profiles.FASTENERS[j.kind].reach_r_mm + SEAT_MM
         cuts.append(_axis(j, j.upper[1], hi + far, r, n) if upper else
                     _axis(j, lo - far, j.lower[0], r, n))
-    if j.kind in ("rod", "printed-pin"):  # the cap or head sits outside the boss: room for
-        for p in j.pieces:                  # it, from the boss's face on outwards
-            if p.printed and p.role != "pin":
+    if j.kind in ("rod", "dowel", "printed-pin"):  # the cap or head sits outside the boss:
+        for p in j.pieces:
+            if p.printed and p.role != "pin":  # room for it, from the boss's face outwards
                 beyond = p.s0 >= j.length / 2
                 cuts.append(_axis(j, p.s0 - j.gap if beyond else p.s0 - far,
                                   p.s1 + far if beyond else p.s1 + j.gap,
@@ -238,16 +242,17 @@ def piece_parts(joints: tuple[Joint, ...]) -> list[Part]:
     for j in joints:
         for k, p in enumerate(q for q in j.pieces if q.printed):
             solid = piece_solid(j, p)
-            if p.role in ("pin cap", "rod cap"):  # its hole: the pin's or rod's end
-                axle = next(q for q in j.pieces if q.role in ("pin", "rod"))
+            if p.role in ("pin cap", "rod cap", "dowel cap"):  # its hole: the axle's end
+                axle = next(q for q in j.pieces if q.role in ("pin", "rod", "dowel"))
                 hole = j.axle_d / 2 - (profiles.PRINTED_CAP_PRESS_MM / 2
                                        if p.role == "pin cap" else -0.05)
                 solid = csg.Cut(solid, (_axis(j, max(p.s0, axle.s0) - EPS_MM,
                                               min(p.s1, axle.s1) + EPS_MM, hole),))
             name = f"{p.role.replace(' ', '_')}_{j.index}" + (f"_{k}" if k > 1 else "")
-            # a rod cap is glued on the rod: rigid with the grounded link; the others turn
-            # about the axis with either link (the lower one, by convention)
-            link = (j.index + (j.rod_side or 0)) % 6 if p.role == "rod cap" else j.index
+            # a rod or dowel cap is glued on its axle: rigid with the link holding it; the
+            # others turn about the axis with either link (the lower one, by convention)
+            link = (j.index + (j.rod_side or 0)) % 6 if p.role in ("rod cap", "dowel cap") \
+                else j.index
             # a cap prints on its closed end, the hole up; a pin on its side (export)
             beyond = p.s0 >= j.length / 2
             down = np.asarray(j.w, float) * (1.0 if beyond else -1.0)

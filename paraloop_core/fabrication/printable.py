@@ -134,7 +134,7 @@ def _score(plan: sizing.Plan) -> tuple:
 
 def kind_of(plan: sizing.Plan) -> str:
     """The joint kind a plan's joints are laid out for."""
-    return plan.layouts[0].kind
+    return plan.kind
 
 
 def _plan(real: Realization, opts: Options, size_mm: float | None = None,

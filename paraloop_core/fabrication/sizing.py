@@ -28,10 +28,13 @@ from paraloop_core.fabrication import bed, flat, joints, stiffness
 from paraloop_core.fabrication.profiles import Material, Printer, Rod
 from paraloop_core.fabrication.rows import BOSS_PER_BAR, Bounds, bounds_of, envelopes, radii
 
-#: Bars at least this wide across flats (mm): the floor, and the width aimed for.
-WIDTH_MM, WIDTH_AIM_MM = 6.0, 7.0
-#: Bar length per width across flats: the ceiling, and the ratio aimed for.
-LW_MAX, LW_AIM = 30.0, 25.0
+#: Bars at least this wide across flats (mm): the floor, and the width aimed for. The floor
+#: is a maker's 6 mm plus twice a printer's 0.2 mm tolerance: a bar sized at 6.00 mm prints
+#: (and measures) under it.
+WIDTH_MM, WIDTH_AIM_MM = 6.4, 7.0
+#: Bar length per width across flats: the ceiling (30 less a margin, as the floor), and the
+#: ratio aimed for.
+LW_MAX, LW_AIM = 28.0, 25.0
 #: Thickest bar (corner radius, mm) as a fraction of the size, within [lo, hi] mm: thicker
 #: only adds mass (and motor torque) to a desk model.
 BAR_CAP = (0.028, 4.5, 8.0)
@@ -53,7 +56,7 @@ THICKER = 1.35
 #: Bounds (mm) on each link's predicted deflection tried by :func:`at_scale`, stiffest first.
 DEFLECTION_STEPS = (0.1, 0.15, 0.25, 0.4, 0.6, 0.9)
 #: What the sizing reaches, best first: the aims (bars 7 mm wide, 25 times as long, gaps 3 x
-#: the deflections and 10 % more), the floors (6 mm, 30, 3 x), the least gap (1 mm between
+#: the deflections and 10 % more), the floors (6.4 mm, 28, 3 x), the least gap (1 mm between
 #: every two links, however they bend), thin (bars only as thick as their bores' walls need).
 LEVELS = ("aims", "floors", "least gap", "thin bars")
 #: Smallest size (mm) the search goes down to.
@@ -74,7 +77,8 @@ class Plan:
     corner ``radii`` ``(6,)`` and ``boss`` radii ``(6,)`` (mm), the joint ``layouts``, the
     ``deflection`` estimate, the required ``gaps`` ``(6, 6)`` (the programme kept
     :data:`GAP_MARGIN` more at level 0), the motor ``torque_nm`` bound used, the
-    :data:`LEVELS` ``level`` reached and ``notes``."""
+    :data:`LEVELS` ``level`` reached, the joint ``kind`` asked for (a screw joint whose bar
+    runs on past its boss is laid out as a dowel, :func:`joints.layout`) and ``notes``."""
 
     size_mm: float
     scale: float
@@ -87,6 +91,7 @@ class Plan:
     level: int
     #: the resting (grounded) link the torque was planned for (-1: the worst of all)
     rest: int = -1
+    kind: str = "m3"
     notes: tuple[str, ...] = field(default=())
 
     @property
@@ -275,7 +280,7 @@ def _fixed_point(real, b: Bounds, k: float, printer: Printer, material: Material
             d = stiffness.deflections(b.bar_lengths * k, r, np.ones(6), material.modulus_gpa,
                                       material.density_g_cm3, tq)
             return Plan(k * b.extent, k, r, boss, lay, d, stiffness.required_gaps(d.total),
-                        tq, 0, -1 if rest is None else rest)
+                        tq, 0, -1 if rest is None else rest, kind)
     return None
 
 

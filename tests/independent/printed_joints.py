@@ -6,7 +6,7 @@ axis (:mod:`joint_profile`) give: the bore actually present, the length over whi
 held (material at every angle, bore <= axle + 0.5 mm), the walls around it, pieces that would
 not fit, and for screw joints the retention (a lock nut, in a hexagonal trap that takes it
 and stops it turning or outside its boss on a washer, head and nut bearing on material, the
-stock screw reaching past the nut); rod joints need their printed cap.
+stock screw reaching past the nut); rod and dowel joints need their printed cap.
 """
 
 from __future__ import annotations
@@ -97,7 +97,7 @@ def check_joint(ex, j: int, wall_mm: float) -> tuple[dict, list[str], list[str]]
     out = {"joint": j, "kind": jt["kind"], "axle_diameter_mm": 2 * r_axle, "links": rows}
     if _pieces(jt, "lock nut"):
         fails += _screw_retention(ex, jt, prof, out)
-    elif jt["kind"] == "rod":
+    elif jt["kind"] in ("rod", "dowel"):
         fails += _rod_retention(ex, jt, prof, origin, axis, out)
     elif not any(p.get("printed") and re.search("cap|clip|retainer", p["role"])
                  for p in jt.get("pieces", [])):
@@ -175,21 +175,23 @@ def _screw_retention(ex, jt: dict, prof: list, out: dict) -> list[str]:
 
 
 def _rod_retention(ex, jt: dict, prof: list, origin, axis, out: dict) -> list[str]:
-    """A rod joint: the rod is held by the grounded link; a printed cap on the rod's end keeps
-    the other link on, bearing over its bore."""
-    j, fails = jt["joint"], []
+    """A rod joint: the rod is held by the grounded link (a dowel joint: by the link the report
+    names ``fixed_link``, in a blind bore); a printed cap on the axle's end keeps the other
+    link on, bearing over its bore."""
+    j, fails, kind = jt["joint"], [], jt["kind"]
     caps = _pieces(jt, "cap")
-    rods = _pieces(jt, "rod")
-    name = f"rod_cap_{j}"
+    rods = _pieces(jt, kind)
+    name = f"{kind}_cap_{j}"
     if not caps or not (ex.folder / f"{name}.stl").exists():
-        return [f"joint {j}: rod joint without its printed cap ({name}.stl)"]
-    cap, rod = caps[0], [p for p in rods if p["role"] == "rod"][0]
+        return [f"joint {j}: {kind} joint without its printed cap ({name}.stl)"]
+    cap, rod = caps[0], [p for p in rods if p["role"] == kind][0]
+    holder = ex.grounded if kind == "rod" else jt.get("fixed_link")
     r_rod = float(rod["radius_mm"])
     c0, c1 = cap["s_mm"]
     p = jp.profile(ex.mesh(name), origin, axis, c0 - 1, c1 + 1)
     in_cap = jp.run_length(jp.held(p, r_rod))
     ends = np.asarray(jt["bosses_mm"], float)
-    turning = 0 if ex.grounded == (j + 1) % 6 else 1
+    turning = 0 if holder == (j + 1) % 6 else 1
     bore = out["links"][turning]["bore_mm"]
     bore_r = bore[1] if bore else r_rod
     # the cap's face toward the turning link must cover that link's bore with material
@@ -198,14 +200,14 @@ def _rod_retention(ex, jt: dict, prof: list, origin, axis, out: dict) -> list[st
     covers = bool(np.all(p.rin[face] <= bore_r) and np.all(p.rout[face] >= bore_r + 1.0))
     out["retention"] = {"cap": name, "rod_in_cap_mm": in_cap, "cap_covers_bore": covers,
                         "turning_link": out["links"][turning]["link"]}
-    if ex.grounded not in (j, (j + 1) % 6):
-        fails.append(f"joint {j}: the rod joint is not a joint of the grounded link")
+    if holder not in (j, (j + 1) % 6):
+        fails.append(f"joint {j}: the {kind} joint is not a joint of the link holding it")
     if not in_cap >= ROD_IN_CAP_MM:
-        fails.append(f"joint {j}: the rod reaches {in_cap:.2f} mm into its cap "
+        fails.append(f"joint {j}: the {kind} reaches {in_cap:.2f} mm into its cap "
                      f"< {ROD_IN_CAP_MM:g} mm")
     if not covers:
         fails.append(f"joint {j}: the cap does not cover link {out['links'][turning]['link']}'s "
-                     "bore (the link can slide off the rod)")
+                     f"bore (the link can slide off the {kind})")
     return fails
 
 
