@@ -173,16 +173,20 @@ def test_dowel_bores_are_blind_where_the_bar_runs_on():
 @pytest.mark.parametrize("which", ASSEMBLIES)
 def test_hardware_and_pieces_fit_their_holes(which):
     """No printed part meets the hardware or a printed piece of its joints (a pin cap is a
-    press fit on its pin, by design), and two links of one joint keep the clearance."""
+    press fit on its pin, by design), and two links of one joint keep the clearance. A rod or
+    dowel is pressed into its holding link's bore of its own size: the two polygons share
+    their faces, and the boolean's slivers there may not exceed 0.2 mm^3 (a real interference
+    of 0.01 mm over 10 mm of a 3 mm dowel is 1 mm^3)."""
     asm = assembly_of(which)
     c = asm.printer.clearance_mm
     for j in asm.joints:
         links = [asm.parts[j.index].manifold, asm.parts[(j.index + 1) % 6].manifold]
-        others = [h.solid for h in asm.hardware if h.joint == j.index]
-        others += [p.manifold for p in asm.parts[6:] if p.joint[0] == j.index]
-        for link in links:
-            for o in others:
-                assert (link ^ o).volume() < 1e-6, j.index
+        others = [(h.solid, h.role) for h in asm.hardware if h.joint == j.index]
+        others += [(p.manifold, p.role) for p in asm.parts[6:] if p.joint[0] == j.index]
+        for k, link in enumerate(links):
+            for o, role in others:
+                pressed = role in ("dowel", "rod") and j.rod_side == k
+                assert (link ^ o).volume() < (0.2 if pressed else 1e-6), (j.index, role)
         gap = links[0].min_gap(links[1], 2.0)
         assert c - polygon_error(j.reach + c) - 1e-4 <= gap <= max(c, j.gap) + 1e-4, j.index
 

@@ -366,6 +366,12 @@ def refit(b: Base, rod: Rod, wall_mm: float, bed_mm: tuple[float, float, float]
     step = b.radius - far - b.margin_mm  # the parts' motion between samples, as measured
     foot = b.frame[:, :2].T @ b.bottom
     center, radius = _plate(com2, foot, rod.d_mm / 2 + 2 * wall_mm, step)
+    if radius <= b.radius:  # the path's disc is no larger (the samples' motion was
+        # overestimated): the same disc grown until the measured margin is a point over the
+        # limit, every point of the path then that much farther from the rim
+        aim = MARGIN + 0.01
+        center = b.center
+        radius = b.radius + max(aim * 2 * b.radius - b.margin_mm, 0.0) / (1 - 2 * aim)
     if radius > plate_room(bed_mm) or radius <= b.radius:
         return None
     return replace(b, center=center, radius=radius)

@@ -55,6 +55,8 @@ COVER = 0.6
 PROTRUDE_MM = 1.0
 #: Room (mm) a boss keeps beyond its bore's wall (:func:`min_boss_radius`).
 BOSS_ROOM_MM = 0.4
+#: How far (mm) a dowel reaches into its glued cap (the cap's wall over its end on top).
+DOWEL_IN_CAP_MM = 2.5
 
 
 @dataclass(frozen=True)
@@ -239,9 +241,12 @@ def layout(index: int, origin: np.ndarray, far: np.ndarray, axis: np.ndarray,
     gap = fastener_of(kind).washer_t_mm if kind in profiles.FASTENERS else printer.clearance_mm
     m, notch, o_lo, o_up = _bosses(length, bars, w, radii, boss, gap, eps, d, (0.0, 0.0))
     if kind in profiles.FASTENERS:
-        # a dowel's cap: as wide as the washer it replaces, and a wall around its hole
-        cap_r = max(fastener_of(kind).reach_r_mm, d / 2 + 0.05 + printer.wall_mm + BOSS_ROOM_MM)
-        blocked = blocked_sides(bars, w, (o_lo, o_up), cap_r + SEAT_MM + eps)
+        # a dowel's cap: over the free bore by a millimetre, a wall around its hole, and a
+        # little more (no wider than the washer it replaces: within the room tested here)
+        cap_r = max(bore_radius("dowel", printer, None, False, d) + 1.0,
+                    d / 2 + 0.05 + printer.wall_mm) + 0.2
+        blocked = blocked_sides(bars, w, (o_lo, o_up),
+                                fastener_of(kind).reach_r_mm + SEAT_MM + eps)
         if sum(blocked) == 1:  # the head or nut would sit inside that bar: a dowel instead
             kind, rod_side, cap = "dowel", blocked.index(True), True
             gap = printer.clearance_mm
@@ -268,10 +273,12 @@ def layout(index: int, origin: np.ndarray, far: np.ndarray, axis: np.ndarray,
                         printed=True)]
     else:  # rod: a cap on the free side's end; beyond the other side it goes on to the base
         head, height = boss - 0.5, profiles.PRINTED_CAP_H_MM
-        if kind == "dowel":
-            head = min(head, cap_r)
         deep = profiles.PRINTED_CAP_DEPTH_MM
-        if kind == "dowel":  # the blind bore's floor instead of the way to the base
+        if kind == "dowel":  # a small cap (the washer's width, a wall over the dowel's end):
+            # it reaches past the pin's end as little as a screw's nut does; and the blind
+            # bore's floor instead of the way to the base
+            head, deep = min(head, cap_r), DOWEL_IN_CAP_MM
+            height = deep + printer.wall_mm
             s0, s3 = (s0 + floor, s3) if fixed == 0 else (s0, s3 - floor)
         if not cap:  # the rod ends 1 mm inside the free boss; the closed loop holds it there
             pieces = [Piece(s0, s3 - 1.0, d / 2, "rod") if (rod_side or 0) == 0 else
@@ -326,9 +333,9 @@ def envelope(j: Joint) -> tuple[float, float]:
     hard = 0.0
     for p in j.pieces:
         past = max(-p.s0, p.s1 - j.length, 0.0)
-        if p.printed:
+        if p.printed and p.role != "dowel cap":
             boss = max(boss, past)
-        else:
+        else:  # metal, and a dowel's cap (as narrow as a washer: no boss-wide room for it)
             hard = max(hard, p.radius + past)
     return boss, hard
 
