@@ -9,8 +9,10 @@ grounded link. Masses: mesh volume x
 density (print material, steel for hardware). Convex pieces for collisions: each part lies in
 the union of its capsules, whose hulls (cut at the table plane) contain it, so the contacts
 found are conservative (a contact may be reported where the parts keep a gap smaller than the
-capsules' excess). Hinges: the joint axes through the bosses' split, oriented so that each
-angle grows over the cycle. The drive: the design's drive plan with the grounded link resting,
+capsules' excess); the base plate is its disc itself (its capsule is a ball over the whole
+disc, which rose 90 mm over the table and met tv8's link 2, certified clear of the plate).
+Hinges: the joint axes through the bosses' split, oriented so that each angle grows over the
+cycle. The drive: the design's drive plan with the grounded link resting,
 its motor turned by the speed schedule (at constant speed where no schedule meets the limits).
 """
 
@@ -66,8 +68,10 @@ def model_from_assembly(asm: Assembly, material: profiles.Material,
     hinges = tuple(Hinge(j.index, rot @ j.at(j.split) + world[:3, 3], rot @ j.w)
                    for j in asm.joints)
     rho = material.density_g_cm3
+    plate = None if asm.base is None else asm.base.thickness
     bodies = [_body(p.name, -1 if p.role == "base" else p.link, p.manifold, p.capsules,
-                    p.radii, rho, world) for p in asm.parts]
+                    p.radii, rho, world, plate if p.role == "base" else None)
+              for p in asm.parts]
     bodies += [_body(f"{h.role.replace(' ', '_')}_{h.joint}_{k}", h.link, h.solid,
                      h.capsule[None],
                      np.array([h.radius]), profiles.STEEL_G_CM3, world)
@@ -81,10 +85,18 @@ def model_from_assembly(asm: Assembly, material: profiles.Material,
 
 
 def _body(name: str, link: int, solid, capsules: np.ndarray, radii: np.ndarray,
-          density_g_cm3: float, world: np.ndarray) -> Body:
+          density_g_cm3: float, world: np.ndarray, plate_mm: float | None = None) -> Body:
+    """A part as a body; ``plate_mm``: the base plate of that thickness on the table, whose
+    first capsule (a ball over the whole disc, ample for the verification's broad phase)
+    becomes the disc itself (the hull of its vertices up to its top face): a ball of the
+    plate's radius stands that high over the table, where moving links pass."""
     mesh = part_trimesh(solid).apply_transform(world)
     caps = np.einsum("ij,nkj->nki", world[:3, :3], capsules) + world[:3, 3]
     pieces = []
+    if plate_mm is not None:
+        low = mesh.vertices[mesh.vertices[:, 2] <= plate_mm + 1e-6]
+        pieces.append(trimesh.convex.convex_hull(low))
+        caps, radii = caps[1:], radii[1:]
     for (p0, p1), r in zip(caps, radii, strict=True):
         hull = trimesh.convex.convex_hull(np.concatenate([p0 + r * _SPHERE, p1 + r * _SPHERE]))
         if hull.bounds[0, 2] < 0.0:
