@@ -10,7 +10,9 @@ made by the caller, which knows the design) and
 2. builds the links (:mod:`assembly`), each laid on a flat face for printing (:mod:`layout`),
    shrinking the size if a built part does not fit the bed;
 3. grounds it (:mod:`base`): a rod and a plate on which it stands over the whole cycle, the
-   grounded joint re-laid for the rod;
+   grounded joint re-laid for the rod; where a link of it would print over supports (its bar
+   too thin for a flat that keeps its bores' walls), the next sized candidates of its level
+   are built too and one whose links all lie flat is preferred (a base first);
 4. verifies the parts over the continuous cycle (:mod:`check`), measures walls, support,
    stiffness (:mod:`stiffness`) and the motor torque of the real masses.
 
@@ -350,7 +352,9 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
     ranked, tried = choose(candidates, opts, _stage(progress, 0.0, 0.25))
     if progress is not None:
         progress(0.25, "building the parts")
-    # the best candidate that builds and stands on a base; the best that builds if none does
+    # the best candidate that builds and stands on a base and whose links all lie flat on the
+    # bed; else the best on a base (a sized one of its level with no link over supports
+    # first); the best that builds if none has a base
     built, error = [], None
     for cand, real, ee, plan in ranked:
         try:
@@ -368,13 +372,18 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
                 progress(0.4, f"grounding {cand.label}: rod and base plate")
             asm, b, warnings = _ground(asm, opts)
         built.append((cand, real, ee, plan, asm, ee_method, b, warnings))
-        if b is not None or not opts.ground:
+        lifted = [i for i in range(6) if asm.slack[i] < 0]
+        if (b is not None or not opts.ground) and not lifted:
             break
-        tried.append(f"{cand.label}: no grounding rod clears its moving links")
+        if b is None and opts.ground:
+            tried.append(f"{cand.label}: no grounding rod clears its moving links")
+        if lifted:
+            tried.append(f"{cand.label}: link{'s' * (len(lifted) > 1)} "
+                         f"{', '.join(map(str, lifted))} would print over supports")
     if not built:
         raise error
-    cand, real, ee, plan, asm, ee_method, b, warnings = next(
-        (x for x in built if x[6] is not None), built[0])
+    cand, real, ee, plan, asm, ee_method, b, warnings = max(
+        built, key=lambda x: _built_score(x, built[0][3].level, opts.ground))
     ver = check.verify(asm, opts.samples, progress=_stage(progress, 0.45, 0.95))
     lifted = [i for i in range(6) if asm.slack[i] < 0]
     if lifted:
@@ -407,10 +416,19 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
     defl = stiffness.deflections(plan.deflection.lengths, plan.radii, across,
                                  opts.material.modulus_gpa, opts.material.density_g_cm3, tq)
     report["stiffness"] = stiffness.to_dict(defl, opts.material.modulus_gpa, tq)
-    report["walls"] = walls(asm, opts.printer)
+    report["walls"] = thickness.walls({p.name: check.part_trimesh(p.manifold)
+                                       for p in asm.parts}, opts.printer.wall_mm)
     if progress is not None:
         progress(1.0, "parts verified")
     return Printed(asm, real, ee, cand.loop, cand.label, b, report)
+
+
+def _built_score(x: tuple, level: int, ground: bool) -> tuple:
+    """Rank of a built candidate of :func:`make` (larger is better; ``max`` keeps the earlier,
+    better sized, of equals): on a base (when grounding is asked for), then all links flat on
+    the bed at the first one's sizing level (bars no thinner for it)."""
+    plan, asm, b = x[3], x[4], x[6]
+    return (b is not None or not ground, plan.level == level and not np.any(asm.slack < 0))
 
 
 def _level_warnings(plan: sizing.Plan) -> list[str]:
@@ -427,13 +445,3 @@ def _level_warnings(plan: sizing.Plan) -> list[str]:
                 "should keep: the best this realization's certificate allows; handle it gently "
                 "(report: sizing.limiting_pair names the pair that limits it)"]
     return []
-
-
-def walls(asm: Assembly, printer: Printer) -> dict:
-    """Local wall thickness of every printed part (:mod:`thickness`) against the profile."""
-    out = {p.name: thickness.thickness_summary(check.part_trimesh(p.manifold), printer.wall_mm)
-           for p in asm.parts}
-    return {"wall_mm": printer.wall_mm, "ok": all(w["ok"] for w in out.values()),
-            "p5_mm": min(w["p5_mm"] for w in out.values()), "parts": out,
-            "method": "chord along the inward normal at 2000 area-uniform surface points per "
-                      "part (exact on the mesh; the percentile is a sampling estimate)"}
