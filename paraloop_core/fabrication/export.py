@@ -87,9 +87,8 @@ def bill_of_materials(asm: Assembly, material: profiles.Material) -> list[dict]:
             hw[f"{f.name} nylon-insert lock nut (DIN 985)"] += 1
             hw[f"{f.name} washer (ISO 7089, {f.washer_d_mm:g} x {f.washer_t_mm:g} mm)"] += 3
         elif j.kind == "dowel":
-            (axle,) = [p for p in j.pieces if p.role == "dowel"]
-            hw[f"{j.axle_d:g} mm steel dowel pin (ISO 8734) or rod, {axle.s1 - axle.s0:.0f} mm "
-               "long"] += 1
+            hw[f"{j.axle_d:g} mm steel dowel pin (ISO 8734) or rod, "
+               f"{j.axle.s1 - j.axle.s0:.0f} mm long"] += 1
     rows = [{"item": k, "quantity": v, "for": "joints"} for k, v in sorted(hw.items())]
     for h in asm.hardware:
         if h.role.endswith(" rod"):

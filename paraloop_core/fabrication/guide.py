@@ -15,8 +15,8 @@ import numpy as np
 from paraloop_core.fabrication import guide_html, guide_pictures, profiles
 
 
-def _joint_text(j, kind: str, first: int) -> str:
-    a, b = j.index, (j.index + 1) % 6
+def _joint_text(j, first: int) -> str:
+    a, b, kind = j.index, (j.index + 1) % 6, j.kind
     if kind in profiles.FASTENERS:
         f = profiles.FASTENERS[kind]
         return (f"Joint {a} joins link {a} and link {b}: put a washer on the {f.name} x "
@@ -74,7 +74,7 @@ def guide_text(asm, report: dict, material: profiles.Material, pictures: dict[st
     order = [j for j in asm.joints if j.kind != "rod"] + [j for j in asm.joints
                                                           if j.kind == "rod"]
     for k, j in enumerate(order):
-        text = _joint_text(j, j.kind, grounded or 0)
+        text = _joint_text(j, grounded or 0)
         if k == len(order) - 1 and j.kind != "rod":
             text += " This closes the loop: turn the links until the holes line up."
         steps.append((text, pictures.get(f"joint_{j.index}")))

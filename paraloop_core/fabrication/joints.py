@@ -55,6 +55,8 @@ COVER = 0.6
 PROTRUDE_MM = 1.0
 #: Room (mm) a boss keeps beyond its bore's wall (:func:`min_boss_radius`).
 BOSS_ROOM_MM = 0.4
+#: Roles of the pieces a joint turns on (:attr:`Joint.axle`).
+AXLES = ("screw", "pin", "rod", "dowel")
 #: How far (mm) a dowel reaches into its glued cap (the cap's wall over its end on top).
 DOWEL_IN_CAP_MM = 2.5
 
@@ -101,11 +103,15 @@ class Joint:
         return self.origin + np.multiply.outer(s, self.w)
 
     @property
+    def axle(self) -> Piece | None:
+        """The piece the joint turns on: screw, pin, rod or dowel."""
+        return next((p for p in self.pieces if p.role in AXLES), None)
+
+    @property
     def engagement(self) -> tuple[float, float]:
         """Length (mm) of the axle held in each boss (a blind bore's floor and an axle ending
         inside a boss hold nothing there)."""
-        axle = next((p for p in self.pieces if p.role in ("screw", "pin", "rod", "dowel")),
-                    None)
+        axle = self.axle
         lo, hi = (-np.inf, np.inf) if axle is None else (axle.s0, axle.s1)
         return tuple(max(0.0, min(b, hi) - max(a, lo)) for a, b in (self.lower, self.upper))
 
@@ -241,10 +247,6 @@ def layout(index: int, origin: np.ndarray, far: np.ndarray, axis: np.ndarray,
     gap = fastener_of(kind).washer_t_mm if kind in profiles.FASTENERS else printer.clearance_mm
     m, notch, o_lo, o_up = _bosses(length, bars, w, radii, boss, gap, eps, d, (0.0, 0.0))
     if kind in profiles.FASTENERS:
-        # a dowel's cap: over the free bore by a millimetre, a wall around its hole, and a
-        # little more (no wider than the washer it replaces: within the room tested here)
-        cap_r = max(bore_radius("dowel", printer, None, False, d) + 1.0,
-                    d / 2 + 0.05 + printer.wall_mm) + 0.2
         blocked = blocked_sides(bars, w, (o_lo, o_up),
                                 fastener_of(kind).reach_r_mm + SEAT_MM + eps)
         if sum(blocked) == 1:  # the head or nut would sit inside that bar: a dowel instead
@@ -274,23 +276,24 @@ def layout(index: int, origin: np.ndarray, far: np.ndarray, axis: np.ndarray,
     else:  # rod: a cap on the free side's end; beyond the other side it goes on to the base
         head, height = boss - 0.5, profiles.PRINTED_CAP_H_MM
         deep = profiles.PRINTED_CAP_DEPTH_MM
-        if kind == "dowel":  # a small cap (the washer's width, a wall over the dowel's end):
-            # it reaches past the pin's end as little as a screw's nut does; and the blind
-            # bore's floor instead of the way to the base
-            head, deep = min(head, cap_r), DOWEL_IN_CAP_MM
+        a0, a3 = s0, s3  # where the axle ends in the fixed link's boss
+        if kind == "dowel":  # a small cap (1 mm over the free bore, a wall around its hole
+            # and over the dowel's end): it reaches past the pin's end as little as a screw's
+            # nut does; the dowel ends at the blind bore's floor
+            head = min(head, max(bore_radius("dowel", printer, None, False, d) + 1.0,
+                                 d / 2 + 0.05 + printer.wall_mm) + 0.2)
+            deep = DOWEL_IN_CAP_MM
             height = deep + printer.wall_mm
-            s0, s3 = (s0 + floor, s3) if fixed == 0 else (s0, s3 - floor)
+            a0, a3 = (s0 + floor, s3) if fixed == 0 else (s0, s3 - floor)
         if not cap:  # the rod ends 1 mm inside the free boss; the closed loop holds it there
-            pieces = [Piece(s0, s3 - 1.0, d / 2, "rod") if (rod_side or 0) == 0 else
-                      Piece(s0 + 1.0, s3, d / 2, "rod")]
-        elif (rod_side or 0) == 0:
+            pieces = [Piece(a0, a3 - 1.0, d / 2, "rod") if fixed == 0 else
+                      Piece(a0 + 1.0, a3, d / 2, "rod")]
+        elif fixed == 0:
             pieces = [Piece(s3 + c, s3 + c + height, head, f"{kind} cap", printed=True),
-                      Piece(s0, s3 + c + deep, d / 2, kind)]
+                      Piece(a0, s3 + c + deep, d / 2, kind)]
         else:
             pieces = [Piece(s0 - c - height, s0 - c, head, f"{kind} cap", printed=True),
-                      Piece(s0 - c - deep, s3, d / 2, kind)]
-        if kind == "dowel":  # the bosses still span the floors
-            s0, s3 = (s0 - floor, s3) if fixed == 0 else (s0, s3 + floor)
+                      Piece(s0 - c - deep, a3, d / 2, kind)]
     held = kind in ("rod", "dowel")
     bores = tuple(bore_radius(kind, printer, rod, held and fixed == k, d) for k in (0, 1))
     return Joint(index, kind, origin, w, length, m, gap, float(boss), (s0, m - gap / 2),

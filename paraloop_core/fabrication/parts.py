@@ -124,7 +124,7 @@ def holes(j: Joint, upper: bool, far: float, n: int = SEGMENTS) -> csg.Union:
     lo, hi = j.extent
     bore = j.bore[1 if upper else 0]
     if j.kind == "dowel" and j.rod_side == int(upper):  # its blind bore: from the floor on
-        floor = j.pieces[-1].s1 if upper else j.pieces[-1].s0  # the dowel's end in it
+        floor = j.axle.s1 if upper else j.axle.s0  # the dowel's end in it
         return csg.Union((_axis(j, lo - far, floor, bore, n) if upper else
                           _axis(j, floor, hi + far, bore, n),))
     cuts = [_axis(j, lo - far, hi + far, bore, n)]
@@ -243,7 +243,7 @@ def piece_parts(joints: tuple[Joint, ...]) -> list[Part]:
         for k, p in enumerate(q for q in j.pieces if q.printed):
             solid = piece_solid(j, p)
             if p.role in ("pin cap", "rod cap", "dowel cap"):  # its hole: the axle's end
-                axle = next(q for q in j.pieces if q.role in ("pin", "rod", "dowel"))
+                axle = j.axle
                 hole = j.axle_d / 2 - (profiles.PRINTED_CAP_PRESS_MM / 2
                                        if p.role == "pin cap" else -0.05)
                 solid = csg.Cut(solid, (_axis(j, max(p.s0, axle.s0) - EPS_MM,

@@ -326,7 +326,7 @@ def _on_rod(asm: Assembly, b: base.Base, opts: Options, cap: bool = True
     side = 0 if b.link == b.joint else 1
     new = _rod_joint(asm, b.joint, opts, b.rod, side, cap)
     asm = assembly.relay(asm, b.joint, new)
-    rod_piece = next(p for p in new.pieces if p.role == "rod")
+    rod_piece = new.axle
     cap_end = new.at(rod_piece.s1 if side == 0 else rod_piece.s0)  # the rod's upper end
     b = replace(b, top=cap_end)
     bare = replace(asm, hardware=tuple(h for h in asm.hardware if h.role != "rod"))
@@ -372,7 +372,7 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
                 progress(0.4, f"grounding {cand.label}: rod and base plate")
             asm, b, warnings = _ground(asm, opts)
         built.append((cand, real, ee, plan, asm, ee_method, b, warnings))
-        lifted = [i for i in range(6) if asm.slack[i] < 0]
+        lifted = _lifted(asm)
         if (b is not None or not opts.ground) and not lifted:
             break
         if b is None and opts.ground:
@@ -385,7 +385,7 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
     cand, real, ee, plan, asm, ee_method, b, warnings = max(
         built, key=lambda x: _built_score(x, built[0][3].level, opts.ground))
     ver = check.verify(asm, opts.samples, progress=_stage(progress, 0.45, 0.95))
-    lifted = [i for i in range(6) if asm.slack[i] < 0]
+    lifted = _lifted(asm)
     if lifted:
         warnings.append(f"link{'s' if len(lifted) > 1 else ''} "
                         f"{', '.join(map(str, lifted))} cannot lie on the bar's face without "
@@ -428,7 +428,13 @@ def _built_score(x: tuple, level: int, ground: bool) -> tuple:
     better sized, of equals): on a base (when grounding is asked for), then all links flat on
     the bed at the first one's sizing level (bars no thinner for it)."""
     plan, asm, b = x[3], x[4], x[6]
-    return (b is not None or not ground, plan.level == level and not np.any(asm.slack < 0))
+    return (b is not None or not ground, plan.level == level and not _lifted(asm))
+
+
+def _lifted(asm: Assembly) -> list[int]:
+    """The links that cannot lie on their bar's face: printed on their bosses' cut faces,
+    the bar over supports (:func:`flat.lift`)."""
+    return [i for i in range(6) if asm.slack[i] < 0]
 
 
 def _level_warnings(plan: sizing.Plan) -> list[str]:
