@@ -318,8 +318,9 @@ def _groups(asm: Assembly, jt, meshes: dict, world: np.ndarray
         if h.role == "lock nut":
             groups.append(([Piece(names[h.role], _tm(h.solid), NUT_COLOR, focus=True)],
                            2.0 * pull))
-    for p in printed:
-        off = -pull if p.role == "pin" else 2.0 * pull
+    for p in printed:  # a cap pulled out on the side it sits (a rod's or dowel's: either)
+        beyond = float((p.capsules[0, 0] - jt.origin) @ jt.w) >= jt.length / 2
+        off = -pull if p.role == "pin" else (2.0 if beyond else -2.0) * pull
         groups.append(([Piece(p.name.replace("_", " "), meshes[p.name], PIN_COLOR,
                               focus=True)], off))
     return groups
