@@ -27,6 +27,7 @@ from paraloop_core.errors import RealizationError
 from paraloop_core.fabrication import animate, bed, check, guide, printable
 from paraloop_core.fabrication import export as export_files
 from paraloop_core.fabrication.printable import Candidate, Options, Printed
+from paraloop_core.fabrication.step_job import StepJob
 from paraloop_core.linkage import drive_plan
 from paraloop_core.pipeline import Solution
 from paraloop_core.realization import polyline, realize, roomy
@@ -175,16 +176,17 @@ def note(sol: Solution, printed: Printed) -> str:
             "whose joints are a few millimetres long at a printable size")
 
 
-def make(sol: Solution, opts: Options | None = None, progress: Progress | None = None
-         ) -> tuple[Printed, Solution]:
-    """The printed loop of a solved design and the solution it was built on."""
+def make(sol: Solution, opts: Options | None = None, progress: Progress | None = None,
+         on_parts: Callable | None = None) -> tuple[Printed, Solution]:
+    """The printed loop of a solved design and the solution it was built on
+    (``on_parts``: :func:`printable.make`'s)."""
     opts = opts or Options()
     if not sol.design.realization.enabled:
         raise RealizationError("the design has no realization (enable it in the design "
                                "file: realization.enabled)", "bad-parameters")
     made: list[Solution] = []
     printed = printable.make(candidates(sol, opts.printer, made), opts, sol.design.drive,
-                             progress)
+                             progress, on_parts)
     chosen = next(s for s in made if s.realization is printed.realization)
     chosen = replace(chosen, realization_report={
         **chosen.realization_report, "printed": note(sol, printed)})
@@ -197,11 +199,25 @@ def export(sol: Solution, opts: Options | None = None, *, rhino: bool = False,
     """The export folder's files (``paraloop export``, the studio's *Export all*), the report
     and the printed loop's solution; ``simulate``: with the physics check
     (:func:`physics_check`: report ``physics``, the MJCF and its meshes)."""
+    opts = opts or Options()
+    # the STEP solids are made on the second core while the parts are verified and the
+    # meshes and guide written (:mod:`step_job`)
+    with StepJob() as job:
+        return _export(sol, opts, rhino, simulate, progress, job)
+
+
+def _export(sol: Solution, opts: Options, rhino: bool, simulate: bool,
+            progress: Progress | None, job: StepJob
+            ) -> tuple[list[tuple[str, bytes]], dict, Solution]:
     import json
 
-    opts = opts or Options()
+    def stage(lo: float, hi: float) -> Progress | None:
+        return None if progress is None else lambda f, msg: progress(lo + (hi - lo) * f, msg)
 
-    printed, chosen = make(sol, opts, progress)
+    printed, chosen = make(sol, opts, stage(0.0, 0.85), lambda asm: job.submit(
+        asm, export_files.step_colors(asm), export_files.STEEL))
+    if progress is not None:
+        progress(0.86, "writing the parts, the guide and its pictures")
     report = printed.report
     report["choice"]["note"] = note(sol, printed)
     report["choice"]["design_loop"] = sol.design.loop
@@ -213,12 +229,12 @@ def export(sol: Solution, opts: Options | None = None, *, rhino: bool = False,
     report["animation"] = f"animation.glb: the printed parts through one cycle, {how}"
     if simulate:
         if progress is not None:
-            progress(0.97, "physics check (MuJoCo)")
+            progress(0.9, "physics check (MuJoCo)")
         report["physics"], more = physics_check(printed, opts, sol.design.drive)
         files += more
     if progress is not None:
-        progress(0.98, "STEP solids")
-    files += export_files.step_files(printed.assembly, report)  # last: the slowest
+        progress(0.97, "STEP solids")
+    files += export_files.step_files(printed.assembly, report, job)  # last: the slowest
     result = json.dumps(result_to_dict(chosen), indent=1, allow_nan=False) + "\n"
     files.append(("result.json", result.encode()))
     files.append(("report.json", export_files.report_json(report)))

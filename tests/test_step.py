@@ -5,6 +5,7 @@ OpenCascade's own reader, independently of the writer."""
 
 from __future__ import annotations
 
+import re
 import types
 from collections import Counter
 
@@ -168,3 +169,48 @@ def test_a_fillet_that_does_not_close_is_polyhedral(written, monkeypatch):
     solid, kind = step.part_solid(link)
     assert kind == "exact, polyhedral fillet" and BRepCheck_Analyzer(solid).IsValid()
     assert _props(solid)[0] == pytest.approx(link.manifold.volume(), rel=0.01)
+
+
+def _geometry(data: bytes) -> list[str]:
+    """A STEP file's statements up to its colours (whose order follows memory addresses);
+    assembly usages without their serial number (counted per process by the writer)."""
+    out = []
+    for s in data.decode().split(";"):
+        s = re.sub(r"USAGE_OCCURRENCE\('\d+'", "USAGE_OCCURRENCE('n'", "".join(s.split()))
+        if "STYLE" in s or "COLOUR" in s:
+            break
+        if not s.startswith("FILE_NAME") and "PRESENTATION" not in s:  # time stamp, colours
+            out.append(s)
+    return out
+
+
+def test_the_helper_process_writes_the_same_solids(written):
+    """The export's helper process (:mod:`step_job`) writes the same geometry, statement
+    for statement, and the same kinds of solid as the solids made in this process."""
+    from paraloop_core.fabrication import step_job
+
+    asm, files, report, _ = written
+    colors = export.step_colors(asm)
+    with step_job.StepJob(spawn=True) as job:
+        assert job._proc is not None
+        job.submit(asm, colors, export.STEEL)
+        out, kinds = job.result(asm, colors, export.STEEL)
+        assert job._proc.returncode == 0  # made by the helper, not here
+    assert kinds == {e["name"]: e["step"] for e in report["parts"]}
+    assert [n for n, _ in out] == ["parts.step", "assembly.step"]
+    for name, data in out:
+        assert len(_geometry(data)) > 1000
+        assert _geometry(data) == _geometry(files[name]), name
+
+
+def test_a_helper_that_dies_leaves_the_solids_to_this_process(written):
+    from paraloop_core.fabrication import step_job
+
+    asm, files, report, _ = written
+    colors = export.step_colors(asm)
+    with step_job.StepJob(spawn=True) as job:
+        job._proc.kill()
+        job.submit(asm, colors, export.STEEL)
+        out, kinds = job.result(asm, colors, export.STEEL)
+    assert kinds == {e["name"]: e["step"] for e in report["parts"]}
+    assert _geometry(dict(out)["parts.step"]) == _geometry(files["parts.step"])

@@ -26,6 +26,7 @@ import trimesh
 from paraloop_core.errors import FabricationError
 from paraloop_core.fabrication import check, layout, profiles
 from paraloop_core.fabrication.assembly import Assembly
+from paraloop_core.fabrication.step_job import StepJob
 
 #: RGB of links 0..5 (and the base, index 6) in the exported assembly and the pictures.
 LINK_COLORS = np.array([[150, 150, 150], [220, 60, 60], [60, 160, 70], [240, 140, 30],
@@ -121,13 +122,17 @@ def parts_entry(asm: Assembly, meshes: dict[str, trimesh.Trimesh],
             for p in asm.parts]
 
 
-def step_files(asm: Assembly, report: dict) -> list[tuple[str, bytes]]:
-    """``parts.step`` and ``assembly.step`` (:mod:`step`); each of ``report``'s ``parts``
-    gains ``step``: ``"exact"``, ``"exact, polyhedral fillet"`` or ``"faceted"``."""
-    from paraloop_core.fabrication import step  # OpenCascade: loaded only to write STEP
+def step_colors(asm: Assembly) -> dict[str, np.ndarray]:
+    """RGB of each printed part of ``asm`` in ``assembly.step``, by name."""
+    return {p.name: color_of(-1 if p.role == "base" else p.link) for p in asm.parts}
 
-    colors = {p.name: color_of(-1 if p.role == "base" else p.link) for p in asm.parts}
-    out, kinds = step.step_files(asm, colors, STEEL)
+
+def step_files(asm: Assembly, report: dict, job: StepJob | None = None
+               ) -> list[tuple[str, bytes]]:
+    """``parts.step`` and ``assembly.step`` (:mod:`step`; by ``job``'s helper process when
+    it was handed ``asm``, :mod:`step_job`); each of ``report``'s ``parts`` gains ``step``:
+    ``"exact"``, ``"exact, polyhedral fillet"`` or ``"faceted"``."""
+    out, kinds = (job or StepJob(spawn=False)).result(asm, step_colors(asm), STEEL)
     for entry in report.get("parts", []):
         entry["step"] = kinds[entry["name"]]
     return out

@@ -346,8 +346,10 @@ def _on_rod(asm: Assembly, b: base.Base, opts: Options, cap: bool = True
 
 
 def make(candidates: Iterable[Candidate], opts: Options | None = None,
-         drive: DriveSettings | None = None, progress: Progress | None = None) -> Printed:
-    """The printable loop (module docstring)."""
+         drive: DriveSettings | None = None, progress: Progress | None = None,
+         on_parts: Callable[[Assembly], None] | None = None) -> Printed:
+    """The printable loop (module docstring); ``on_parts(assembly)`` is called once the parts
+    are final, before their verification (the export starts its STEP solids then)."""
     opts = opts or Options()
     ranked, tried = choose(candidates, opts, _stage(progress, 0.0, 0.25))
     if progress is not None:
@@ -384,6 +386,8 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
         raise error
     cand, real, ee, plan, asm, ee_method, b, warnings = max(
         built, key=lambda x: _built_score(x, built[0][3].level, opts.ground))
+    if on_parts is not None:
+        on_parts(asm)
     ver = check.verify(asm, opts.samples, progress=_stage(progress, 0.45, 0.95))
     lifted = _lifted(asm)
     if lifted:

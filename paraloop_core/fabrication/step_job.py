@@ -1,0 +1,141 @@
+"""The STEP solids on the second core.
+
+OpenCascade's booleans hold Python's lock, so a thread gains nothing: an export starts one
+helper process when it starts (``python -m`` this module, in a session of its own, so a
+Ctrl-C reaches only the export, which stops it; its imports overlap the sizing), hands it
+the parts once they are built, before they are verified (:func:`printable.make`'s
+``on_parts``), and collects ``parts.step`` and ``assembly.step`` after the meshes and the
+guide are written. The helper evaluates the same trees with the same code
+(:func:`step.step_files`); the parts' meshes travel as float64 arrays (the :mod:`copyreg`
+reducer below). On one core, or when the helper fails or dies, the solids are made here as
+before: the files never depend on it.
+"""
+
+from __future__ import annotations
+
+import copyreg
+import os
+import pickle
+import subprocess
+import sys
+import threading
+from pathlib import Path
+from types import SimpleNamespace
+
+import manifold3d as m3d
+import numpy as np
+
+#: Seconds to wait for the helper's files after the rest of the export is done (it has
+#: then had the parts since before their verification); past it they are made here.
+WAIT_S = 300.0
+
+
+def _manifold(vert_properties: np.ndarray, tri_verts: np.ndarray) -> m3d.Manifold:
+    return m3d.Manifold(m3d.Mesh64(vert_properties=vert_properties, tri_verts=tri_verts))
+
+
+def _reduce(man: m3d.Manifold) -> tuple:
+    mesh = man.to_mesh64()
+    return _manifold, (np.asarray(mesh.vert_properties, np.float64),
+                       np.asarray(mesh.tri_verts, np.uint32))
+
+
+copyreg.pickle(m3d.Manifold, _reduce)
+
+
+def cores() -> int:
+    """Cores this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not Linux
+        return os.cpu_count() or 1
+
+
+def _serve() -> None:
+    """The helper: read one pickled job from stdin while OpenCascade loads, write the
+    pickled ``(files, kinds)`` to stdout (exit 1 on any failure: the export makes them)."""
+    data: list[bytes] = []
+    reader = threading.Thread(target=lambda: data.append(sys.stdin.buffer.read()))
+    reader.start()
+    from paraloop_core.fabrication import step
+
+    reader.join()
+    sys.stdout.buffer.write(pickle.dumps(step.step_files(*pickle.loads(data[0]))))
+
+
+class StepJob:
+    """``parts.step`` and ``assembly.step`` of an assembly, made by a helper process where
+    there is a second core (module docstring). Use as a context manager: the helper is
+    stopped on leaving it, whatever happened."""
+
+    def __init__(self, spawn: bool | None = None) -> None:
+        self._proc: subprocess.Popen | None = None
+        self._sent = False
+        self._out: list[bytes] = []
+        self._reader: threading.Thread | None = None
+        if spawn if spawn is not None else cores() >= 2:
+            root = str(Path(__file__).resolve().parents[2])  # where paraloop_core lives
+            env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+                [root, *filter(None, [os.environ.get("PYTHONPATH")])])}
+            try:
+                self._proc = subprocess.Popen(
+                    [sys.executable, "-m", __name__], stdin=subprocess.PIPE,
+                    stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, env=env,
+                    start_new_session=True)
+            except OSError:  # no helper: made here
+                self._proc = None
+
+    def __enter__(self) -> StepJob:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def submit(self, asm, colors: dict[str, np.ndarray], steel: np.ndarray) -> None:
+        """Hand the helper the parts and hardware of ``asm`` (colours by part name)."""
+        if self._proc is None or self._sent:
+            return
+        job = SimpleNamespace(parts=list(asm.parts), hardware=list(asm.hardware))
+        try:
+            self._proc.stdin.write(pickle.dumps((job, colors, steel)))
+            self._proc.stdin.close()
+            self._sent = True
+        except OSError:  # the helper is gone: made here
+            self.close()
+            return
+        # its answer is drained as it comes (a full pipe would stall the helper)
+        stdout = self._proc.stdout
+        self._reader = threading.Thread(target=lambda: self._out.append(stdout.read()),
+                                        daemon=True)
+        self._reader.start()
+
+    def result(self, asm, colors: dict[str, np.ndarray], steel: np.ndarray
+               ) -> tuple[list[tuple[str, bytes]], dict[str, str]]:
+        """``(files, kinds)`` of :func:`step.step_files` for ``asm``: the helper's when it
+        made them, else made here."""
+        if self._sent:
+            self._reader.join(WAIT_S)
+            if self._out and self._proc.wait() == 0:
+                try:
+                    return pickle.loads(self._out[0])
+                except (pickle.UnpicklingError, EOFError, ValueError):
+                    pass
+        self.close()
+        from paraloop_core.fabrication import step  # OpenCascade: loaded only to write STEP
+
+        return step.step_files(asm, colors, steel)
+
+    def close(self) -> None:
+        """Stop the helper (it holds nothing worth keeping once this is asked)."""
+        if self._proc is not None:
+            if self._proc.poll() is None:
+                self._proc.kill()
+            self._proc.wait()
+            for pipe in (self._proc.stdin, self._proc.stdout):
+                pipe.close()
+            self._proc = None
+        self._sent = False
+
+
+if __name__ == "__main__":
+    _serve()
