@@ -168,6 +168,14 @@ def test_dowel_bores_are_blind_where_the_bar_runs_on():
         hits = F.ray_hits(F.mesh_of(part.manifold).triangles, start, out)
         assert hits[0] == pytest.approx(1.0, abs=1e-3), (part.name, j.index)
         assert len(hits) == 1 or hits[1] - hits[0] >= asm.printer.wall_mm, (part.name, hits)
+        # its cap, on the other end: from inside its hole outwards, a floor of more than the
+        # printer's wall over the dowel's end (the hole's cut reaches a little past that end)
+        (cap,) = [p for p in asm.parts if p.name == f"dowel_cap_{j.index}"]
+        tip = axle.s0 if side == 1 else axle.s1
+        hits = F.ray_hits(F.mesh_of(cap.manifold).triangles, j.at(tip + 1.0 * (out @ j.w)),
+                          -out)
+        assert len(hits) == 2 and hits[0] == pytest.approx(1.0, abs=parts.EPS_MM + 1e-3)
+        assert hits[1] - hits[0] >= asm.printer.wall_mm + 0.3, (cap.name, hits)
 
 
 @pytest.mark.parametrize("which", ASSEMBLIES)

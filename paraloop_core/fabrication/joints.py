@@ -283,7 +283,8 @@ def layout(index: int, origin: np.ndarray, far: np.ndarray, axis: np.ndarray,
             head = min(head, max(bore_radius("dowel", printer, None, False, d) + 1.0,
                                  d / 2 + 0.05 + printer.wall_mm) + 0.2)
             deep = DOWEL_IN_CAP_MM
-            height = deep + printer.wall_mm
+            # the wall over the dowel's end with room: the hole's cut reaches EPS past it
+            height = deep + printer.wall_mm + BOSS_ROOM_MM
             a0, a3 = (s0 + floor, s3) if fixed == 0 else (s0, s3 - floor)
         if not cap:  # the rod ends 1 mm inside the free boss; the closed loop holds it there
             pieces = [Piece(a0, a3 - 1.0, d / 2, "rod") if fixed == 0 else

@@ -375,10 +375,12 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
             asm, b, warnings = _ground(asm, opts)
         built.append((cand, real, ee, plan, asm, ee_method, b, warnings))
         lifted = _lifted(asm)
-        if (b is not None or not opts.ground) and not lifted:
+        if (b is not None or not opts.ground) and not lifted and not _capless(asm):
             break
         if b is None and opts.ground:
             tried.append(f"{cand.label}: no grounding rod clears its moving links")
+        if _capless(asm):
+            tried.append(f"{cand.label}: no capped grounding rod leaves its links whole")
         if lifted:
             tried.append(f"{cand.label}: link{'s' * (len(lifted) > 1)} "
                          f"{', '.join(map(str, lifted))} would print over supports")
@@ -429,16 +431,25 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
 
 def _built_score(x: tuple, level: int, ground: bool) -> tuple:
     """Rank of a built candidate of :func:`make` (larger is better; ``max`` keeps the earlier,
-    better sized, of equals): on a base (when grounding is asked for), then all links flat on
-    the bed at the first one's sizing level (bars no thinner for it)."""
+    better sized, of equals): on a base (when grounding is asked for), its rod capped (a
+    joint that holds before one that prints without support), then all links flat on the bed
+    at the first one's sizing level (bars no thinner for it)."""
     plan, asm, b = x[3], x[4], x[6]
-    return (b is not None or not ground, plan.level == level and not _lifted(asm))
+    return (b is not None or not ground, not _capless(asm),
+            plan.level == level and not _lifted(asm))
 
 
 def _lifted(asm: Assembly) -> list[int]:
     """The links that cannot lie on their bar's face: printed on their bosses' cut faces,
     the bar over supports (:func:`flat.lift`)."""
     return [i for i in range(6) if asm.slack[i] < 0]
+
+
+def _capless(asm: Assembly) -> bool:
+    """Whether the grounding rod has no printed cap keeping its moving link on (every capped
+    rod left a link in pieces: :func:`_ground`'s fallback)."""
+    return any(j.kind == "rod" and not any(p.role == "rod cap" for p in j.pieces)
+               for j in asm.joints)
 
 
 def _level_warnings(plan: sizing.Plan) -> list[str]:

@@ -98,7 +98,7 @@ def check_joint(ex, j: int, wall_mm: float) -> tuple[dict, list[str], list[str]]
     if _pieces(jt, "lock nut"):
         fails += _screw_retention(ex, jt, prof, out)
     elif jt["kind"] in ("rod", "dowel"):
-        fails += _rod_retention(ex, jt, prof, origin, axis, out)
+        fails += _rod_retention(ex, jt, prof, origin, axis, out, wall_mm)
     elif not any(p.get("printed") and re.search("cap|clip|retainer", p["role"])
                  for p in jt.get("pieces", [])):
         fails.append(f"joint {j}: nothing retains the {jt['kind']} axle (no lock nut, cap, "
@@ -174,7 +174,8 @@ def _screw_retention(ex, jt: dict, prof: list, out: dict) -> list[str]:
     return fails
 
 
-def _rod_retention(ex, jt: dict, prof: list, origin, axis, out: dict) -> list[str]:
+def _rod_retention(ex, jt: dict, prof: list, origin, axis, out: dict, wall_mm: float
+                   ) -> list[str]:
     """A rod joint: the rod is held by the grounded link (a dowel joint: by the link the report
     names ``fixed_link``, in a blind bore); a printed cap on the axle's end keeps the other
     link on, bearing over its bore."""
@@ -190,6 +191,9 @@ def _rod_retention(ex, jt: dict, prof: list, origin, axis, out: dict) -> list[st
     c0, c1 = cap["s_mm"]
     p = jp.profile(ex.mesh(name), origin, axis, c0 - 1, c1 + 1)
     in_cap = jp.run_length(jp.held(p, r_rod))
+    # the cap's own walls: around the axle's end and over it (a floor to its blind hole)
+    cap_wall = jp.thinnest_wall(p, jp.held(p, r_rod))[0]
+    cap_floor = jp.floor(p, np.ones(len(p.s), bool))
     ends = np.asarray(jt["bosses_mm"], float)
     turning = 0 if holder == (j + 1) % 6 else 1
     bore = out["links"][turning]["bore_mm"]
@@ -199,7 +203,13 @@ def _rod_retention(ex, jt: dict, prof: list, origin, axis, out: dict) -> list[st
     face = p.near(c0 + 0.15 if toward < 0 else c1 - 0.15)
     covers = bool(np.all(p.rin[face] <= bore_r) and np.all(p.rout[face] >= bore_r + 1.0))
     out["retention"] = {"cap": name, "rod_in_cap_mm": in_cap, "cap_covers_bore": covers,
+                        "cap_wall_mm": cap_wall, "cap_floor_mm": cap_floor,
                         "turning_link": out["links"][turning]["link"]}
+    if not cap_wall >= wall_mm + RESOLUTION_MM or not (
+            cap_floor is None or cap_floor >= wall_mm + RESOLUTION_MM):
+        fails.append(f"joint {j}: the cap {name} has walls of {cap_wall:.2f} mm and a floor of "
+                     f"{cap_floor or 0:.2f} mm over the {kind}'s end < profile wall "
+                     f"{wall_mm:g} mm")
     if holder not in (j, (j + 1) % 6):
         fails.append(f"joint {j}: the {kind} joint is not a joint of the link holding it")
     if not in_cap >= ROD_IN_CAP_MM:
