@@ -166,3 +166,22 @@ def test_wall_slack_is_the_room_under_each_bore():
             room += [level - p.down @ j.at(s) - reach for s in (j.upper if up else j.lower)]
         assert slack == pytest.approx(min(room), abs=1e-5)  # the ends of the bores decide
         assert flat.wall_slack(p.down, level - slack - 1e-3, sides, wall) < 0
+
+
+@pytest.mark.parametrize("target", [0.3, 0.0, -0.1, -0.19, -0.21, -0.5, -3.0])
+def test_a_flat_short_of_the_full_room_still_keeps_the_least_room(target):
+    """A print flat keeping less room than :data:`flat.WALL_ROOM_MM` beyond the bores' walls
+    but at least :data:`flat.MIN_ROOM_MM` still lies on the bar's face; one keeping less is cut
+    deeper (:func:`flat.lift`), exactly so far that the least room is kept."""
+    asm = F.assembly("m3")
+    wall = asm.printer.wall_mm
+    p = asm.links[0]
+    sides = [(asm.joints[0], False), (asm.joints[5], True)]
+    level = float(np.max(asm.bars[0].reshape(-1, 3) @ p.down))
+    level += flat.wall_slack(p.down, level, sides, wall) * -1.0 + target  # slack = target
+    s = flat.wall_slack(p.down, level, sides, wall)
+    assert s == pytest.approx(target, abs=1e-9)
+    least = flat.MIN_ROOM_MM - flat.WALL_ROOM_MM
+    assert flat.lies_flat(s) == (target >= least) and (flat.lift(s) == 0.0) == flat.lies_flat(s)
+    kept = flat.wall_slack(p.down, level + flat.lift(s), sides, wall)
+    assert kept == pytest.approx(max(target, least), abs=1e-9)

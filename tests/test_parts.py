@@ -77,7 +77,7 @@ def test_print_flat_is_the_lowest_face(which):
         face = tm.area_faces[on].sum()
         assert np.all(tm.face_normals[on] @ p.down > 0.99)
         length = float(np.linalg.norm(bar[0][1] - bar[0][0]))
-        if asm.slack[i] >= 0:
+        if flat.lies_flat(asm.slack[i]):
             assert face >= r * length * 0.9  # a hexagon's side is its corner radius
         else:  # on the bosses' cut faces: each keeps at least a wall's width
             assert face >= asm.printer.wall_mm ** 2, (p.name, face)
@@ -175,7 +175,7 @@ def test_dowel_bores_are_blind_where_the_bar_runs_on():
         hits = F.ray_hits(F.mesh_of(cap.manifold).triangles, j.at(tip + 1.0 * (out @ j.w)),
                           -out)
         assert len(hits) == 2 and hits[0] == pytest.approx(1.0, abs=parts.EPS_MM + 1e-3)
-        assert hits[1] - hits[0] >= asm.printer.wall_mm + 0.3, (cap.name, hits)
+        assert hits[1] - hits[0] >= asm.printer.wall_mm + 0.2, (cap.name, hits)
 
 
 @pytest.mark.parametrize("which", ASSEMBLIES)

@@ -122,7 +122,8 @@ def _link(plan: sizing.Plan, i: int, bars: np.ndarray, layouts: tuple[Joint, ...
     # bar (the bar's own face on the cutting plane can leave slivers at one tessellation
     # after another; cutting it keeps every wall while the slack allows)
     tries = [(more, 0.0, down) for more in RETESSELLATE]
-    if (slack if slack >= 0 else flat.WALL_ROOM_MM) >= 2 * INTO_BAR_MM:
+    # (the room to spare: beyond the full room, else beyond the least; none where lifted)
+    if slack - (0.0 if slack >= 0 else flat.FLAT_SLACK) >= 2 * INTO_BAR_MM:
         tries.append((RETESSELLATE[0], -INTO_BAR_MM, down))
     # last, the flat turned a little about the bar (a coincidence of the geometry itself)
     axis = (main[1] - main[0]) / np.linalg.norm(main[1] - main[0])
@@ -187,7 +188,8 @@ def relay(asm: Assembly, j: int, joint: Joint) -> Assembly:
         r = float(asm.plan.radii[i])
         level = float(np.max(asm.bars[i].reshape(-1, 3) @ keep)) + r * sizing.APOTHEM
         sides = [(layouts[i], False), (layouts[(i - 1) % 6], True)]
-        down = keep if flat.wall_slack(keep, level, sides, asm.printer.wall_mm) >= 0 else None
+        down = keep if flat.lies_flat(flat.wall_slack(keep, level, sides,
+                                                       asm.printer.wall_mm)) else None
         new_parts[i], slack[i] = _link(asm.plan, i, asm.bars[i], layouts, asm.printer,
                                        asm.extras, down)
         parts.check_solid(new_parts[i].manifold, new_parts[i].name)

@@ -12,9 +12,10 @@ flat's normal (exact: a steep axis needs less than a level one). A bar of corner
 has its flat ``r sqrt(3) / 2`` below its axis, which passes through the link's joint points:
 the flat keeps every wall when that is at least the deepest point a wall needs
 (:func:`least_depth`, minimised over the turns), which :mod:`sizing` uses to size the bars and
-:mod:`layout` to pick the turn. Where the room between the links does not allow so thick a
-bar, the link is cut deeper (:func:`lift`): it stands on its bosses' cut faces and its bar
-prints over support.
+:mod:`layout` to pick the turn; a turn keeping less room than :data:`WALL_ROOM_MM` but at least
+:data:`MIN_ROOM_MM` is taken where none keeps the full room (:func:`lies_flat`). Where the
+room between the links does not allow so thick a bar, the link is cut deeper (:func:`lift`):
+it stands on its bosses' cut faces and its bar prints over support.
 """
 
 from __future__ import annotations
@@ -28,6 +29,11 @@ TURNS_DEG = np.arange(0.0, 360.0, 10.0)
 #: Room (mm) a flat keeps beyond a bore's wall (:func:`room`): two layers, so that a cut
 #: never leaves the printer's minimum wall exactly (polygons and the slicer take a little).
 WALL_ROOM_MM = 0.4
+#: Least room (mm) beyond a bore's wall a flat keeps where the full :data:`WALL_ROOM_MM` does
+#: not fit: one layer. Only a link whose every turn keeps less is lifted onto supports.
+MIN_ROOM_MM = 0.2
+#: :func:`wall_slack` (mm) down to which a link still lies on its bar's face.
+FLAT_SLACK = MIN_ROOM_MM - WALL_ROOM_MM
 
 
 def down_candidates(bar: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
@@ -81,8 +87,14 @@ def least_depth(bar: tuple[np.ndarray, np.ndarray], joints: list[tuple[Joint, bo
     return float(np.min(depths(downs, joints, wall) - downs @ np.asarray(bar[0], float)))
 
 
+def lies_flat(slack: float) -> bool:
+    """Whether a link whose print flat has ``slack`` (:func:`wall_slack`) lies on its bar's
+    face: every bore keeps its wall and at least :data:`MIN_ROOM_MM` more from the flat."""
+    return bool(slack >= FLAT_SLACK)
+
+
 def lift(slack: float) -> float:
     """How far (mm) below its bar's down face a link whose print flat has ``slack`` is cut:
-    0 where the walls allow the bar's face, else at the deepest wall's :func:`room` (the
-    bosses' cut faces stand on the bed, the bar over support)."""
-    return max(0.0, -float(slack))
+    0 where it :func:`lies_flat`, else as deep as the deepest wall and :data:`MIN_ROOM_MM`
+    need (the bosses' cut faces stand on the bed, the bar over support)."""
+    return max(0.0, FLAT_SLACK - float(slack))

@@ -57,8 +57,10 @@ PROTRUDE_MM = 1.0
 BOSS_ROOM_MM = 0.4
 #: Roles of the pieces a joint turns on (:attr:`Joint.axle`).
 AXLES = ("screw", "pin", "rod", "dowel")
-#: How far (mm) a dowel reaches into its glued cap (the cap's wall over its end on top).
-DOWEL_IN_CAP_MM = 2.5
+#: How far (mm) a dowel reaches into its glued cap, and the room (mm) the cap keeps over its
+#: end beyond the printer's wall (the hole's cut reaches a little past the end): the cap as
+#: tall as the nut room the sizing gives a joint.
+DOWEL_IN_CAP_MM, DOWEL_CAP_ROOM_MM = 2.2, 0.3
 
 
 @dataclass(frozen=True)
@@ -283,8 +285,7 @@ def layout(index: int, origin: np.ndarray, far: np.ndarray, axis: np.ndarray,
             head = min(head, max(bore_radius("dowel", printer, None, False, d) + 1.0,
                                  d / 2 + 0.05 + printer.wall_mm) + 0.2)
             deep = DOWEL_IN_CAP_MM
-            # the wall over the dowel's end with room: the hole's cut reaches EPS past it
-            height = deep + printer.wall_mm + BOSS_ROOM_MM
+            height = deep + printer.wall_mm + DOWEL_CAP_ROOM_MM
             a0, a3 = (s0 + floor, s3) if fixed == 0 else (s0, s3 - floor)
         if not cap:  # the rod ends 1 mm inside the free boss; the closed loop holds it there
             pieces = [Piece(a0, a3 - 1.0, d / 2, "rod") if fixed == 0 else

@@ -73,7 +73,8 @@ def choose_down(bar: tuple[np.ndarray, np.ndarray], radius: float,
     """``(down, slack)``: the print flat of a link (module docstring). ``build(down, lift)``
     makes the coarse part for a candidate (a manifold), cut ``lift`` mm below the bar's face
     (:func:`flat.lift`; None: not cut); among the candidates whose cut at the bar's face
-    keeps every wall (:func:`flat.wall_slack` >= 0), or else a few turns cut deeper, and the
+    keeps every wall with room (:func:`flat.wall_slack` >= 0, else :func:`flat.lies_flat`), or
+    else a few turns cut deeper, and the
     unit directions ``more`` ``(M, 3)`` (an end-effector's faces, not cut), the one with the
     least support area wins (ties: the lower part)."""
     downs = flat.down_candidates(bar)
@@ -84,7 +85,9 @@ def choose_down(bar: tuple[np.ndarray, np.ndarray], radius: float,
     turns = len(flat.TURNS_DEG)
     if more is not None:
         slack[turns:] = np.minimum(slack[turns:], -1.0)  # not perpendicular to the bar
+    # the turns keeping the full room, else those keeping the least room, else all (lifted)
     ok = np.flatnonzero(slack[:turns] >= 0)
+    ok = ok if len(ok) else np.flatnonzero(slack[:turns] >= flat.FLAT_SLACK)
     pool = ok if len(ok) else np.arange(turns)
     trials = [*pool[:: max(1, int(np.ceil(len(pool) / TRIALS)))], *range(turns, len(downs))]
     figures = {}  # trial: (support area, height)

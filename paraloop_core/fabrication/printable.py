@@ -270,7 +270,7 @@ def _ground(asm: Assembly, opts: Options) -> tuple[Assembly, base.Base | None, l
                 if exc.reason not in ("falls-apart", "bad-parameters", "not-watertight"):
                     raise
                 continue
-            if all(grounded[0].slack[i] >= 0 for i in (b.joint, (b.joint + 1) % 6)):
+            if all(flat.lies_flat(grounded[0].slack[i]) for i in (b.joint, (b.joint + 1) % 6)):
                 return (*grounded, warnings)
             fallback = fallback or grounded  # make() names the links not flat
         if fallback is not None:
@@ -288,7 +288,7 @@ def _rods(asm: Assembly, b: base.Base, opts: Options) -> list[Rod]:
     fits = []
     for rod in stock:
         j = _rod_joint(asm, b.joint, opts, rod, side, True)
-        if all(asm.plan.radii[i] * sizing.APOTHEM >= flat.least_depth(
+        if all(asm.plan.radii[i] * sizing.APOTHEM - flat.FLAT_SLACK >= flat.least_depth(
                 (asm.bars[i][0][0], asm.bars[i][-1][1]),
                 [(j if i == b.joint else asm.joints[i], False),
                  (j if (i - 1) % 6 == b.joint else asm.joints[(i - 1) % 6], True)],
@@ -442,7 +442,7 @@ def _built_score(x: tuple, level: int, ground: bool) -> tuple:
 def _lifted(asm: Assembly) -> list[int]:
     """The links that cannot lie on their bar's face: printed on their bosses' cut faces,
     the bar over supports (:func:`flat.lift`)."""
-    return [i for i in range(6) if asm.slack[i] < 0]
+    return [i for i in range(6) if not flat.lies_flat(asm.slack[i])]
 
 
 def _capless(asm: Assembly) -> bool:
