@@ -57,10 +57,15 @@ def _serve() -> None:
     data: list[bytes] = []
     reader = threading.Thread(target=lambda: data.append(sys.stdin.buffer.read()))
     reader.start()
+    # the answer goes to the pipe's own descriptor; anything OpenCascade prints to stdout
+    # goes where stderr goes (nowhere), not into the answer
+    answer = os.fdopen(os.dup(1), "wb")
+    os.dup2(2, 1)
     from paraloop_core.fabrication import step
 
     reader.join()
-    sys.stdout.buffer.write(pickle.dumps(step.step_files(*pickle.loads(data[0]))))
+    answer.write(pickle.dumps(step.step_files(*pickle.loads(data[0]))))
+    answer.close()
 
 
 class StepJob:
