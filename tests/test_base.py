@@ -176,11 +176,11 @@ def test_a_capped_grounding_rod_outranks_a_capless_one():
     """The export keeps looking past a candidate whose grounding rod lost its cap (every capped
     rod left a link in pieces) and ranks one with the cap above it: the cap keeps the moving
     link on the rod."""
-    from paraloop_core.fabrication import printable
+    from paraloop_core.fabrication import printable, stand
 
     pr = F.printed()
     opts = printable.Options(size_mm=F.SIZE_MM, samples=F.SAMPLES)
-    capless, _ = printable._on_rod(F.assembly("m3"), pr.base, opts, cap=False)
+    capless, _ = stand.on_rod(F.assembly("m3"), pr.base, opts, cap=False)
     assert printable._capless(capless) and not printable._capless(pr.assembly)
     rod = capless.joints[pr.base.joint]
     assert rod.kind == "rod" and not any(p.printed for p in rod.pieces)
@@ -188,6 +188,5 @@ def test_a_capped_grounding_rod_outranks_a_capless_one():
     def row(asm):
         return (None, None, None, asm.plan, asm, None, pr.base, [])
 
-    level = pr.assembly.plan.level
-    assert printable._built_score(row(pr.assembly), level, True) > \
-        printable._built_score(row(capless), level, True)
+    assert printable._built_score(row(pr.assembly), True) > \
+        printable._built_score(row(capless), True)

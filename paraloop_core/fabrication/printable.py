@@ -11,8 +11,9 @@ made by the caller, which knows the design) and
    shrinking the size if a built part does not fit the bed;
 3. grounds it (:mod:`base`): a rod and a plate on which it stands over the whole cycle, the
    grounded joint re-laid for the rod; where a link of it would print over supports (its bar
-   too thin for a flat that keeps its bores' walls), the next sized candidates of its level
-   are built too and one whose links all lie flat is preferred (a base first);
+   too thin for a flat that keeps its bores' walls) or its rod has no cap, the next sized
+   candidates are built too and the one with the fewest such defects is taken (a base
+   first);
 4. verifies the parts over the continuous cycle (:mod:`check`), measures walls, support,
    stiffness (:mod:`stiffness`) and the motor torque of the real masses.
 
@@ -23,7 +24,7 @@ report (``choice``, ``sizing``, ``warnings``).
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -42,37 +43,21 @@ from paraloop_core.fabrication import (
     profiles,
     rows,
     sizing,
+    stand,
     stiffness,
     thickness,
 )
 from paraloop_core.fabrication.assembly import Assembly
-from paraloop_core.fabrication.profiles import Material, Printer, Rod
+from paraloop_core.fabrication.profiles import Options, Printer
 from paraloop_core.linkage import loops
 from paraloop_core.realization.certified import Realization
 
 Progress = Callable[[float, str], None]
-#: Most candidate realizations sized before the best so far is taken, and grounding rods tried
-#: (best first) until one leaves both its links flat on the bed.
+#: Most candidate realizations sized before the best so far is taken.
 MAX_CANDIDATES = 16
 #: Sized candidates after which the choice is made even when none meets the aims (each more
 #: costs a realization and a sizing; the best of three is rarely beaten later).
 ENOUGH_SIZED = 3
-GROUND_TRIES = 4
-
-
-@dataclass(frozen=True)
-class Options:
-    """What the maker chose (None: the program chooses)."""
-
-    printer: Printer = profiles.PRINTERS["generic"]
-    material: Material = profiles.MATERIALS["pla"]
-    joints: str = "auto"  # the CLI's and the studio's default: M3, M2 where M3 does not fit
-    rod: Rod = profiles.DEFAULT_ROD
-    size_mm: float | None = None
-    ground: bool = True
-    #: the link the grounding rod holds (None: the program chooses)
-    ground_link: int | None = None
-    samples: int = 720
 
 
 @dataclass(frozen=True)
@@ -200,6 +185,11 @@ def choose(candidates: Iterable[Candidate], opts: Options, progress: Progress | 
     return sorted(sized, key=lambda c: _score(c[3]), reverse=True), tried
 
 
+#: How far the end-effector link's bars reach past P's corners L and R towards its centroid
+#: (a fraction of the way): inside P, not on its corner.
+END_INSET = 1e-4
+
+
 def _fit_and_build(real: Realization, ee: object | None, plan: sizing.Plan, opts: Options
                    ) -> tuple[Assembly, sizing.Plan, str | None]:
     """The assembly of ``plan`` and how P became part of link 3 (:mod:`endlink`'s method;
@@ -234,117 +224,6 @@ def _fit_and_build(real: Realization, ee: object | None, plan: sizing.Plan, opts
     return asm, plan, None if el is None else el.method
 
 
-def _ground(asm: Assembly, opts: Options) -> tuple[Assembly, base.Base | None, list[str]]:
-    """The assembly standing on its base (module docstring of :mod:`base`), the grounded joint
-    re-laid for the rod and its two links rebuilt: the best base whose two links still lie
-    flat on the bed and hold together; unchanged with a warning where no rod clears the
-    moving parts."""
-    warnings = []
-    ranked = base.ground(asm, opts.material.density_g_cm3, opts.printer.bed_mm, opts.rod,
-                         opts.printer.clearance_mm)
-    if not ranked:  # then a rod that keeps the least gap, though not the stiffness margin
-        ranked = base.ground(asm, opts.material.density_g_cm3, opts.printer.bed_mm, opts.rod,
-                             opts.printer.clearance_mm,
-                             need=np.full((6, 6), stiffness.MIN_GAP_MM))
-        if ranked:
-            warnings.append(f"the grounding rod keeps {ranked[0].clearance_mm:.1f} mm from "
-                            "the moving links: more than the least gap, less than three times "
-                            "their predicted deflection")
-    if opts.ground_link is not None and ranked:
-        mine = [b for b in ranked if b.link == opts.ground_link]
-        if not mine:
-            warnings.append(f"no grounding rod on link {opts.ground_link} clears the moving "
-                            f"links over the whole cycle: the rod holds link "
-                            f"{ranked[0].link} instead")
-        ranked = mine or ranked
-    # best first: both links flat with the rod's cap, the cap on support, flat without the
-    # cap (the closed loop holds the joint), neither; without the cap only where no rod and
-    # side holds one
-    tries = [(b, rod) for b in ranked[:GROUND_TRIES] for rod in _rods(asm, b, opts)]
-    for cap in (True, False):
-        fallback = None
-        for b, rod in tries:
-            try:
-                grounded = _on_rod(asm, replace(b, rod=rod), opts, cap)
-            except FabricationError as exc:  # this rod or side leaves a link in pieces
-                if exc.reason not in ("falls-apart", "bad-parameters", "not-watertight"):
-                    raise
-                continue
-            if all(flat.lies_flat(grounded[0].slack[i]) for i in (b.joint, (b.joint + 1) % 6)):
-                return (*grounded, warnings)
-            fallback = fallback or grounded  # make() names the links not flat
-        if fallback is not None:
-            return (*fallback, warnings)
-    return asm, None, warnings + [NO_BASE]
-
-
-def _rods(asm: Assembly, b: base.Base, opts: Options) -> list[Rod]:
-    """Stock rods up to the maker's, thickest first, whose bore leaves both links of the
-    grounded joint a print flat (:mod:`flat`, at most two); the maker's rod when none does
-    (those links then print with supports)."""
-    stock = sorted((rod for rod in profiles.RODS.values() if rod.d_mm <= opts.rod.d_mm),
-                   key=lambda rod: (rod != opts.rod, -rod.d_mm))
-    side = 0 if b.link == b.joint else 1
-    fits = []
-    for rod in stock:
-        j = _rod_joint(asm, b.joint, opts, rod, side, True)
-        if all(asm.plan.radii[i] * sizing.APOTHEM - flat.FLAT_SLACK >= flat.least_depth(
-                (asm.bars[i][0][0], asm.bars[i][-1][1]),
-                [(j if i == b.joint else asm.joints[i], False),
-                 (j if (i - 1) % 6 == b.joint else asm.joints[(i - 1) % 6], True)],
-                opts.printer.wall_mm) for i in (b.joint, (b.joint + 1) % 6)):
-            fits.append(rod)
-    return fits[:2] or [opts.rod]
-
-
-def _rod_joint(asm: Assembly, joint: int, opts: Options, rod: Rod, side: int, cap: bool
-               ) -> joints.Joint:
-    """Joint ``joint`` of ``asm`` laid out anew as the grounded joint on ``rod``."""
-    old = asm.joints[joint]
-    r = asm.plan.radii
-    return joints.layout(joint, old.origin, old.at(old.length), old.w,
-                         assembly.bar_vectors(asm, joint), (r[joint], r[(joint + 1) % 6]),
-                         old.boss_radius, "rod", opts.printer, eps=parts.EPS_MM, rod=rod,
-                         rod_side=side, cap=cap)
-
-
-#: How far the end-effector link's bars reach past P's corners L and R towards its centroid
-#: (a fraction of the way): inside P, not on its corner.
-END_INSET = 1e-4
-#: How to hold a loop without a base, and why it has none.
-HOLD = ("hold it by a link (clamp or screw the link's boss to a stand) or hang it by a link "
-        "on a string")
-NO_BASE = ("no grounding rod clears the moving links over the whole cycle: exported without a "
-           "base; " + HOLD)
-#: Plates built for one grounding: the first, then grown for the measured centre of mass.
-PLATE_ROUNDS = 3
-
-
-def _on_rod(asm: Assembly, b: base.Base, opts: Options, cap: bool = True
-            ) -> tuple[Assembly, base.Base]:
-    """``asm`` with joint ``b.joint`` laid out for the rod, the plate and the rod added."""
-    side = 0 if b.link == b.joint else 1
-    new = _rod_joint(asm, b.joint, opts, b.rod, side, cap)
-    asm = assembly.relay(asm, b.joint, new)
-    rod_piece = new.axle
-    cap_end = new.at(rod_piece.s1 if side == 0 else rod_piece.s0)  # the rod's upper end
-    b = replace(b, top=cap_end)
-    bare = replace(asm, hardware=tuple(h for h in asm.hardware if h.role != "rod"))
-    for n in range(PLATE_ROUNDS):
-        asm = assembly.with_parts(bare, (base.plate_part(b, opts.printer.wall_mm),),
-                                  (base.rod_hardware(b, cap_end),), b)
-        b = base.final(asm, b, opts.material.density_g_cm3)
-        if b.stands or n == PLATE_ROUNDS - 1:
-            break
-        # the plate was chosen with predicted masses: where the built parts' centre of mass
-        # comes nearer its rim than the margin, a plate for the measured path (bed allowing)
-        grown = base.refit(b, b.rod, opts.printer.wall_mm, opts.printer.bed_mm)
-        if grown is None:
-            break
-        b = grown
-    return replace(asm, base=b), b
-
-
 def make(candidates: Iterable[Candidate], opts: Options | None = None,
          drive: DriveSettings | None = None, progress: Progress | None = None,
          on_parts: Callable[[Assembly], None] | None = None) -> Printed:
@@ -354,9 +233,8 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
     ranked, tried = choose(candidates, opts, _stage(progress, 0.0, 0.25))
     if progress is not None:
         progress(0.25, "building the parts")
-    # the best candidate that builds and stands on a base and whose links all lie flat on the
-    # bed; else the best on a base (a sized one of its level with no link over supports
-    # first); the best that builds if none has a base
+    # the best candidate that builds and stands on a base, its rod capped and its links all
+    # flat on the bed; else the built one on a base with the fewest defects (_built_score)
     built, error = [], None
     for cand, real, ee, plan in ranked:
         try:
@@ -372,7 +250,7 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
         if opts.ground:
             if progress is not None:
                 progress(0.4, f"grounding {cand.label}: rod and base plate")
-            asm, b, warnings = _ground(asm, opts)
+            asm, b, warnings = stand.ground(asm, opts)
         built.append((cand, real, ee, plan, asm, ee_method, b, warnings))
         lifted = _lifted(asm)
         if (b is not None or not opts.ground) and not lifted and not _capless(asm):
@@ -387,7 +265,7 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
     if not built:
         raise error
     cand, real, ee, plan, asm, ee_method, b, warnings = max(
-        built, key=lambda x: _built_score(x, built[0][3].level, opts.ground))
+        built, key=lambda x: _built_score(x, opts.ground))
     if on_parts is not None:
         on_parts(asm)
     ver = check.verify(asm, opts.samples, progress=_stage(progress, 0.45, 0.95))
@@ -409,7 +287,8 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
         report["base"] = base.to_dict(b, opts.printer.bed_mm)
         report["mount"] = None if b.stands else b.mount
     else:
-        report["mount"] = NO_BASE if opts.ground else "exported without a base: " + HOLD
+        report["mount"] = stand.NO_BASE if opts.ground else \
+            "exported without a base: " + stand.HOLD
     if ee_method is not None:  # how P became part of link 3 (closed, hull or thickened)
         report["end_effector"] = {"link": 3, "method": ee_method}
     masses, centers = base.link_masses(asm, opts.material.density_g_cm3)
@@ -429,14 +308,14 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
     return Printed(asm, real, ee, cand.loop, cand.label, b, report)
 
 
-def _built_score(x: tuple, level: int, ground: bool) -> tuple:
+def _built_score(x: tuple, ground: bool) -> tuple:
     """Rank of a built candidate of :func:`make` (larger is better; ``max`` keeps the earlier,
-    better sized, of equals): on a base (when grounding is asked for), its rod capped (a
-    joint that holds before one that prints without support), then all links flat on the bed
-    at the first one's sizing level (bars no thinner for it)."""
+    better sized, of equals): on a base (when grounding is asked for), then the fewest
+    defects a maker would meet: a grounding rod without its cap, links printed over
+    supports, bars thinner than the floors (:data:`sizing.LEVELS`' last level)."""
     plan, asm, b = x[3], x[4], x[6]
-    return (b is not None or not ground, not _capless(asm),
-            plan.level == level and not _lifted(asm))
+    defects = int(_capless(asm)) + int(bool(_lifted(asm))) + int(plan.level >= 3)
+    return (b is not None or not ground, -defects)
 
 
 def _lifted(asm: Assembly) -> list[int]:
@@ -447,7 +326,7 @@ def _lifted(asm: Assembly) -> list[int]:
 
 def _capless(asm: Assembly) -> bool:
     """Whether the grounding rod has no printed cap keeping its moving link on (every capped
-    rod left a link in pieces: :func:`_ground`'s fallback)."""
+    rod left a link in pieces: :func:`stand.ground`'s fallback)."""
     return any(j.kind == "rod" and not any(p.role == "rod cap" for p in j.pieces)
                for j in asm.joints)
 

@@ -166,3 +166,18 @@ PRINTED_CAP_DEPTH_MM = 4.0
 #: design target (well inside it).
 ENGAGE_MIN = 1.5
 ENGAGE_TARGET = 2.0
+
+
+@dataclass(frozen=True)
+class Options:
+    """What the maker chose (None: the program chooses)."""
+
+    printer: Printer = PRINTERS["generic"]
+    material: Material = MATERIALS["pla"]
+    joints: str = "auto"  # the CLI's and the studio's default: M3, M2 where M3 does not fit
+    rod: Rod = DEFAULT_ROD
+    size_mm: float | None = None
+    ground: bool = True
+    #: the link the grounding rod holds (None: the program chooses)
+    ground_link: int | None = None
+    samples: int = 720
