@@ -60,7 +60,7 @@ AXLES = ("screw", "pin", "rod", "dowel")
 #: How far (mm) a dowel reaches into its glued cap, and the room (mm) the cap keeps over its
 #: end beyond the printer's wall (the hole's cut reaches a little past the end): the cap as
 #: tall as the nut room the sizing gives a joint.
-DOWEL_IN_CAP_MM, DOWEL_CAP_ROOM_MM = 2.2, 0.3
+DOWEL_IN_CAP_MM, DOWEL_CAP_ROOM_MM = 2.3, 0.3
 
 
 @dataclass(frozen=True)
