@@ -185,8 +185,14 @@ def test_a_capped_grounding_rod_outranks_a_capless_one():
     rod = capless.joints[pr.base.joint]
     assert rod.kind == "rod" and not any(p.printed for p in rod.pieces)
 
-    def row(asm):
-        return (None, None, None, asm.plan, asm, None, pr.base, [])
+    def row(asm, b=pr.base):
+        return (None, None, None, asm.plan, asm, None, b, [])
 
+    assert pr.base.stands
     assert printable._built_score(row(pr.assembly), True) > \
+        printable._built_score(row(capless), True)
+    # with as few defects, one standing on its plate before one to be screwed down
+    assert printable._built_score(row(pr.assembly), True) > \
+        printable._built_score(row(pr.assembly, replace(pr.base, stands=False)), True)
+    assert printable._built_score(row(pr.assembly, replace(pr.base, stands=False)), True) > \
         printable._built_score(row(capless), True)

@@ -233,8 +233,9 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
     ranked, tried = choose(candidates, opts, _stage(progress, 0.0, 0.25))
     if progress is not None:
         progress(0.25, "building the parts")
-    # the best candidate that builds and stands on a base, its rod capped and its links all
-    # flat on the bed; else the built one on a base with the fewest defects (_built_score)
+    # the best candidate that builds and stands on its base, its rod capped and its links
+    # all flat on the bed; else the built one on a base with the fewest defects, standing
+    # first (_built_score)
     built, error = [], None
     for cand, real, ee, plan in ranked:
         try:
@@ -253,10 +254,13 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
             asm, b, warnings = stand.ground(asm, opts)
         built.append((cand, real, ee, plan, asm, ee_method, b, warnings))
         lifted = _lifted(asm)
-        if (b is not None or not opts.ground) and not lifted and not _capless(asm):
+        if (b is not None and b.stands or not opts.ground) and not lifted and \
+                not _capless(asm):
             break
         if b is None and opts.ground:
             tried.append(f"{cand.label}: no grounding rod clears its moving links")
+        elif b is not None and not b.stands:
+            tried.append(f"{cand.label}: its plate does not keep the centre of mass inside")
         if _capless(asm):
             tried.append(f"{cand.label}: no capped grounding rod leaves its links whole")
         if lifted:
@@ -312,10 +316,11 @@ def _built_score(x: tuple, ground: bool) -> tuple:
     """Rank of a built candidate of :func:`make` (larger is better; ``max`` keeps the earlier,
     better sized, of equals): on a base (when grounding is asked for), then the fewest
     defects a maker would meet: a grounding rod without its cap, links printed over
-    supports, bars thinner than the floors (:data:`sizing.LEVELS`' last level)."""
+    supports, bars thinner than the floors (:data:`sizing.LEVELS`' last level); then standing
+    on its plate (else screwed down: the report's ``mount``)."""
     plan, asm, b = x[3], x[4], x[6]
     defects = int(_capless(asm)) + int(bool(_lifted(asm))) + int(plan.level >= 3)
-    return (b is not None or not ground, -defects)
+    return (b is not None or not ground, -defects, b is not None and b.stands)
 
 
 def _lifted(asm: Assembly) -> list[int]:
