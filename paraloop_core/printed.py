@@ -211,11 +211,10 @@ def _export(sol: Solution, opts: Options, rhino: bool, simulate: bool,
             ) -> tuple[list[tuple[str, bytes]], dict, Solution]:
     import json
 
-    def stage(lo: float, hi: float) -> Progress | None:
-        return None if progress is None else lambda f, msg: progress(lo + (hi - lo) * f, msg)
+    def submit(asm) -> None:  # the parts built: their STEP solids start on the helper
+        job.submit(asm, export_files.step_colors(asm), export_files.STEEL)
 
-    printed, chosen = make(sol, opts, stage(0.0, 0.85), lambda asm: job.submit(
-        asm, export_files.step_colors(asm), export_files.STEEL))
+    printed, chosen = make(sol, opts, printable.stage(progress, 0.0, 0.85), submit)
     if progress is not None:
         progress(0.86, "writing the parts, the guide and its pictures")
     report = printed.report

@@ -31,7 +31,8 @@ def _joint_text(j, first: int) -> str:
                 f"link {a} (head side) and link {b}, then press the printed pin cap onto its "
                 "end (a drop of glue if it is loose). The joint must turn freely.")
     if kind == "dowel":
-        fixed, free = (a, b) if j.rod_side == 0 else (b, a)
+        fixed = j.fixed_link
+        free = b if fixed == a else a
         return (f"Joint {a} joins link {a} and link {b} on a {j.axle_d:g} mm steel dowel: "
                 f"link {fixed}'s bar runs on past this joint, so no screw fits. Glue the dowel "
                 f"into the blind bore of link {fixed} (to its floor), slide link {free} on, "

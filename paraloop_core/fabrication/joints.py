@@ -61,6 +61,8 @@ AXLES = ("screw", "pin", "rod", "dowel")
 #: end beyond the printer's wall (the hole's cut reaches a little past the end): the cap as
 #: tall as the nut room the sizing gives a joint.
 DOWEL_IN_CAP_MM, DOWEL_CAP_ROOM_MM = 2.3, 0.3
+#: How much wider (mm, radius) a glued cap's hole is than the rod or dowel it takes.
+GLUED_CAP_SLACK_MM = 0.05
 
 
 @dataclass(frozen=True)
@@ -103,6 +105,11 @@ class Joint:
     def at(self, s: float | np.ndarray) -> np.ndarray:
         """Points ``(..., 3)`` at axial coordinates ``s``."""
         return self.origin + np.multiply.outer(s, self.w)
+
+    @property
+    def fixed_link(self) -> int | None:
+        """Kinds ``rod`` and ``dowel``: the link holding the axle fixed (else None)."""
+        return None if self.rod_side is None else (self.index + self.rod_side) % 6
 
     @property
     def axle(self) -> Piece | None:
@@ -283,7 +290,7 @@ def layout(index: int, origin: np.ndarray, far: np.ndarray, axis: np.ndarray,
             # and over the dowel's end): it reaches past the pin's end as little as a screw's
             # nut does; the dowel ends at the blind bore's floor
             head = min(head, max(bore_radius("dowel", printer, None, False, d) + 1.0,
-                                 d / 2 + 0.05 + printer.wall_mm) + 0.2)
+                                 d / 2 + GLUED_CAP_SLACK_MM + printer.wall_mm) + 0.2)
             deep = DOWEL_IN_CAP_MM
             height = deep + printer.wall_mm + DOWEL_CAP_ROOM_MM
             a0, a3 = (s0 + floor, s3) if fixed == 0 else (s0, s3 - floor)
@@ -355,7 +362,7 @@ def to_dict(j: Joint) -> dict:
             "engagement_diameters": [e / j.axle_d for e in j.engagement],
             "notch_mm": list(j.notch), "origin_mm": j.origin.tolist(), "axis": j.w.tolist(),
             # rod and dowel: the link that holds the axle fixed (glued or pressed in)
-            "fixed_link": None if j.rod_side is None else (j.index + j.rod_side) % 6,
+            "fixed_link": j.fixed_link,
             "pieces": [{"role": p.role, "s_mm": [p.s0, p.s1], "radius_mm": p.radius,
                         "printed": p.printed, "sides": p.sides} for p in j.pieces]}
 

@@ -31,7 +31,7 @@ import trimesh
 
 from paraloop_core.errors import FabricationError
 from paraloop_core.fabrication import csg, profiles
-from paraloop_core.fabrication.joints import SEAT_MM, Joint, outward
+from paraloop_core.fabrication.joints import GLUED_CAP_SLACK_MM, SEAT_MM, Joint, outward
 from paraloop_core.fabrication.voxelspace import point_segment_distance
 
 #: Polygon segments of round solids (bosses, bores) and the zone margin they need.
@@ -244,15 +244,14 @@ def piece_parts(joints: tuple[Joint, ...]) -> list[Part]:
             solid = piece_solid(j, p)
             if p.role in ("pin cap", "rod cap", "dowel cap"):  # its hole: the axle's end
                 axle = j.axle
-                hole = j.axle_d / 2 - (profiles.PRINTED_CAP_PRESS_MM / 2
-                                       if p.role == "pin cap" else -0.05)
+                hole = j.axle_d / 2 + (-profiles.PRINTED_CAP_PRESS_MM / 2
+                                       if p.role == "pin cap" else GLUED_CAP_SLACK_MM)
                 solid = csg.Cut(solid, (_axis(j, max(p.s0, axle.s0) - EPS_MM,
                                               min(p.s1, axle.s1) + EPS_MM, hole),))
             name = f"{p.role.replace(' ', '_')}_{j.index}" + (f"_{k}" if k > 1 else "")
             # a rod or dowel cap is glued on its axle: rigid with the link holding it; the
             # others turn about the axis with either link (the lower one, by convention)
-            link = (j.index + (j.rod_side or 0)) % 6 if p.role in ("rod cap", "dowel cap") \
-                else j.index
+            link = j.fixed_link if p.role in ("rod cap", "dowel cap") else j.index
             # a cap prints on its closed end, the hole up; a pin on its side (export)
             beyond = p.s0 >= j.length / 2
             down = np.asarray(j.w, float) * (1.0 if beyond else -1.0)

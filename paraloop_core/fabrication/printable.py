@@ -86,7 +86,8 @@ class Printed:
     report: dict
 
 
-def _stage(progress: Progress | None, lo: float, hi: float) -> Progress | None:
+def stage(progress: Progress | None, lo: float, hi: float) -> Progress | None:
+    """``progress`` mapped onto ``[lo, hi]`` of a larger task (None stays None)."""
     if progress is None:
         return None
     return lambda f, msg: progress(lo + (hi - lo) * f, msg)
@@ -115,13 +116,8 @@ def predicted_fit(plan: sizing.Plan, points: np.ndarray, printer: Printer,
 
 def _score(plan: sizing.Plan) -> tuple:
     kinds = profiles.AUTO_JOINTS
-    rank = -kinds.index(kind_of(plan)) if kind_of(plan) in kinds else 0
+    rank = -kinds.index(plan.kind) if plan.kind in kinds else 0
     return (-plan.level, rank, round(plan.size_mm, 0), float(plan.radii.min()))
-
-
-def kind_of(plan: sizing.Plan) -> str:
-    """The joint kind a plan's joints are laid out for."""
-    return plan.kind
 
 
 def _plan(real: Realization, opts: Options, size_mm: float | None = None,
@@ -213,13 +209,13 @@ def _fit_and_build(real: Realization, ee: object | None, plan: sizing.Plan, opts
             solid = endlink.solid_manifold(el, plan.scale)
             extras = {3: (solid, parts.principal_capsules(solid))}
         asm = assembly.assemble(plan, real.points, real.joint_factors, opts.printer,
-                                kind_of(plan), end_bars=end_bars, extras=extras)
+                                plan.kind, end_bars=end_bars, extras=extras)
         ext = np.array([layout.laid_extent(p.manifold.to_mesh().vert_properties[:, :3],
                                            p.down) for p in asm.links])
         grow = float(bed.laid_fit_factor(ext, opts.printer).min())  # on their print flats
         if grow >= 1.0 or opts.size_mm is not None:
             break
-        plan = sizing.plan(real, opts.printer, opts.material, kind_of(plan), opts.rod,
+        plan = sizing.plan(real, opts.printer, opts.material, plan.kind, opts.rod,
                            size_mm=plan.size_mm * min(grow, 0.99))
     return asm, plan, None if el is None else el.method
 
@@ -230,7 +226,7 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
     """The printable loop (module docstring); ``on_parts(assembly)`` is called once the parts
     are final, before their verification (the export starts its STEP solids then)."""
     opts = opts or Options()
-    ranked, tried = choose(candidates, opts, _stage(progress, 0.0, 0.25))
+    ranked, tried = choose(candidates, opts, stage(progress, 0.0, 0.25))
     if progress is not None:
         progress(0.25, "building the parts")
     # the best candidate that builds and stands on its base, its rod capped and its links
@@ -253,15 +249,14 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
                 progress(0.4, f"grounding {cand.label}: rod and base plate")
             asm, b, warnings = stand.ground(asm, opts)
         built.append((cand, real, ee, plan, asm, ee_method, b, warnings))
-        lifted = _lifted(asm)
-        if (b is not None and b.stands or not opts.ground) and not lifted and \
-                not _capless(asm):
+        lifted, capless = _lifted(asm), _capless(asm)
+        if (b is not None and b.stands or not opts.ground) and not lifted and not capless:
             break
         if b is None and opts.ground:
             tried.append(f"{cand.label}: no grounding rod clears its moving links")
         elif b is not None and not b.stands:
             tried.append(f"{cand.label}: its plate does not keep the centre of mass inside")
-        if _capless(asm):
+        if capless:
             tried.append(f"{cand.label}: no capped grounding rod leaves its links whole")
         if lifted:
             tried.append(f"{cand.label}: link{'s' * (len(lifted) > 1)} "
@@ -272,7 +267,7 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
         built, key=lambda x: _built_score(x, opts.ground))
     if on_parts is not None:
         on_parts(asm)
-    ver = check.verify(asm, opts.samples, progress=_stage(progress, 0.45, 0.95))
+    ver = check.verify(asm, opts.samples, progress=stage(progress, 0.45, 0.95))
     lifted = _lifted(asm)
     if lifted:
         warnings.append(f"link{'s' if len(lifted) > 1 else ''} "
