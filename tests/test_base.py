@@ -155,6 +155,22 @@ def test_plate_is_one_closed_piece_with_the_rod_socket():
     rod = next(h for h in pr.assembly.hardware if h.joint == -1)
     assert (plate.manifold ^ rod.solid).volume() < 1e-6  # the rod in its socket
     assert np.linalg.norm(rod.capsule[1] - b.bottom) < 1e-9  # down to the plate's underside
+    # every vertex lies in the disc's ball and slab, or in the socket's capsule
+    v = np.asarray(plate.manifold.to_mesh().vert_properties[:, :3], float)
+    (mid, _), (s0, s1) = plate.capsules
+    n, half = plate.slabs[0, :3], plate.slabs[0, 3]
+    in_disc = (np.linalg.norm(v - mid, axis=1) <= plate.radii[0]) & (
+        np.abs((v - mid) @ n) <= half)
+    in_socket = clearance_to(v, s0, s1) <= plate.radii[1]
+    assert np.all(in_disc | in_socket) and in_disc.mean() > 0.5
+    assert np.isinf(plate.slabs[1, 3])
+
+
+def clearance_to(v: np.ndarray, s0: np.ndarray, s1: np.ndarray) -> np.ndarray:
+    """Distance ``(n,)`` of points ``v`` to the segment ``[s0, s1]``."""
+    d = s1 - s0
+    t = np.clip((v - s0) @ d / (d @ d), 0.0, 1.0)
+    return np.linalg.norm(v - (s0 + t[:, None] * d), axis=1)
 
 
 def test_a_loop_without_a_base_says_how_it_is_held():

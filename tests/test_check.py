@@ -10,6 +10,7 @@ import fab_fixtures as F
 import manifold3d as m3d
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from paraloop_core.algebra import dq, poly
 from paraloop_core.errors import FabricationError
@@ -120,3 +121,42 @@ def test_verification_without_a_speed_bound(monkeypatch):
     assert mbm.try_motion_bound(jf, 0, 2, center) is None
     ver = check.verify(F.assembly("m3"), samples=48)
     assert ver["ok"] and ver["continuous_min_gap_mm"] > 0
+
+
+def _disc_piece(radius: float, half: float) -> check._Piece:
+    """A 64-gon disc about the z axis, z in [-half, half]: its ball capsule and its slab."""
+    solid = m3d.Manifold.cylinder(2 * half, radius, radius, 64).translate([0.0, 0.0, -half])
+    return check._Piece(solid, np.zeros((1, 2, 3)), np.array([np.hypot(radius, half)]),
+                        np.full(1, -1), np.array([[0.0, 0.0, 1.0, half + 1e-6]]))
+
+
+def _rod_piece(p0: np.ndarray, p1: np.ndarray, r: float) -> check._Piece:
+    from paraloop_core.fabrication import parts
+
+    return check._Piece(parts.cylinder(p0, p1, r), np.array([[p0, p1]]), np.array([r]),
+                        np.full(1, -1), check._no_slabs(1))
+
+
+@pytest.mark.parametrize("disc_moves", [False, True])
+def test_a_slab_raises_the_capsule_bound_and_stays_below_the_exact_gap(disc_moves):
+    """A plate's slab (its thickness) bounds the gap far above its ball when a bar passes
+    over it, and never above the exact gap (manifold3d), with the slab on either side."""
+    rng = np.random.default_rng(11)
+    disc = _disc_piece(40.0, 2.5)
+    rods = [_rod_piece(*rng.normal(0.0, 25.0, (2, 3)) + [0.0, 0.0, 12.0], 3.0)
+            for _ in range(6)]
+    rots = np.tile(np.eye(4), (30, 1, 1))
+    rots[:, :3, :3] = Rotation.random(30, random_state=3).as_matrix()
+    rots[:, :3, 3] = rng.normal(0.0, 10.0, (30, 3))
+    raised = 0
+    for rod in rods:
+        pa, pb = ([rod], [disc]) if disc_moves else ([disc], [rod])
+        bounds = check._piece_bounds(pa, pb, rots)[0, 0]
+        ball = check._capsule_gap((pa[0].caps, pa[0].radii), (pb[0].caps, pb[0].radii), rots)
+        assert np.all(bounds >= ball - 1e-12)
+        for m, lb in zip(rots, bounds, strict=True):
+            moved = pb[0].solid.transform(check._affine(m))
+            exact = pa[0].solid.min_gap(moved, max(lb, 0.0) + 1.0)
+            assert exact >= lb - 1e-6
+        raised += int(np.sum(bounds > ball + 5.0))
+    assert raised > 20  # the slab is not idle

@@ -47,6 +47,8 @@ MARGIN = 0.15
 THICKNESS_MM = (5.0, 8.0, 12.0)
 #: Gap (mm) between the plate's socket and anything that moves; socket height in rod diameters.
 GAP_MM, SOCKET_D = 3.0, 1.5
+#: Growth (mm) of the plate's bounding capsules and slab over its exact shape.
+BOUND_SLACK_MM = 1e-4
 #: Samples of the cycle for the centre of mass and the clearances.
 SAMPLES = 360
 #: The rod's clearance to each moving link per required gap.
@@ -408,9 +410,13 @@ def plate_part(b: Base, wall_mm: float, segments: int = 96) -> Part:
     parts.check_solid(solid, "base plate")
     mid = b.frame @ np.r_[b.center, b.table + b.thickness / 2]
     caps = np.array([[mid, mid], [at_top, b.bottom]])
+    # the disc lies in its ball and in the slab of its thickness (the verification's bound),
+    # both a little grown: its vertices stray ~1e-6 mm through the frame's rounding
+    slabs = np.array([[*up, b.thickness / 2 + BOUND_SLACK_MM], [*up, np.inf]])
     return Part("base_plate", b.link, solid, caps,
-                np.array([np.hypot(b.radius, b.thickness / 2), socket_r]),
-                np.array([-1, -1]), -up, "base", tree)
+                np.array([np.hypot(b.radius, b.thickness / 2) + BOUND_SLACK_MM,
+                          socket_r + BOUND_SLACK_MM]),
+                np.array([-1, -1]), -up, "base", tree, slabs)
 
 
 def rod_hardware(b: Base, cap_end: np.ndarray) -> Hardware:

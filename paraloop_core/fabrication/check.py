@@ -53,20 +53,27 @@ ZONE_SEARCH = 2.0
 
 @dataclass(frozen=True)
 class _Piece:
-    """One solid of a link's group with its capsules ``(n, 2, 3)``, radii and joint tags."""
+    """One solid of a link's group with its capsules ``(n, 2, 3)``, radii, joint tags and
+    slabs ``(n, 4)`` (:class:`parts.Part`; inf: none)."""
 
     solid: m3d.Manifold
     caps: np.ndarray
     radii: np.ndarray
     tags: np.ndarray
+    slabs: np.ndarray
+
+
+def _no_slabs(n: int) -> np.ndarray:
+    return np.tile([0.0, 0.0, 1.0, np.inf], (n, 1))
 
 
 def _group(asm: Assembly, link: int) -> list[_Piece]:
     """Link ``link``'s rigid group (module docstring), piece by piece."""
-    out = [_Piece(p.manifold, p.capsules, p.radii, p.joint) for p in asm.parts
-           if p.link == link]
-    return out + [_Piece(h.solid, h.capsule[None], np.array([h.radius]), np.array([h.joint]))
-                  for h in asm.hardware if h.link == link]
+    out = [_Piece(p.manifold, p.capsules, p.radii, p.joint,
+                  _no_slabs(len(p.radii)) if p.slabs is None else p.slabs)
+           for p in asm.parts if p.link == link]
+    return out + [_Piece(h.solid, h.capsule[None], np.array([h.radius]), np.array([h.joint]),
+                         _no_slabs(1)) for h in asm.hardware if h.link == link]
 
 
 def _outside(asm: Assembly, joint: int, pieces: list[_Piece], w: m3d.Manifold
@@ -79,7 +86,7 @@ def _outside(asm: Assembly, joint: int, pieces: list[_Piece], w: m3d.Manifold
         keep = q.tags != joint
         if keep.any():
             caps = trimmed(asm, joint, q.caps, q.radii, q.tags)[keep]
-            out.append(_Piece(q.solid - w, caps, q.radii[keep], q.tags[keep]))
+            out.append(_Piece(q.solid - w, caps, q.radii[keep], q.tags[keep], q.slabs[keep]))
     return out
 
 
@@ -168,17 +175,34 @@ def _capsule_gap(ca: tuple, cb: tuple, rel: np.ndarray) -> np.ndarray:
 
 def _piece_bounds(pa: list[_Piece], pb: list[_Piece], rel: np.ndarray) -> np.ndarray:
     """:func:`_capsule_gap` of every pair of pieces of ``pa`` and ``pb`` (b moved by ``rel``
-    ``(T, 4, 4)``): ``(A, B, T)``, all capsules in one pass."""
-    seg_b = np.einsum("tij,nkj->tnki", rel[:, :3, :3], np.concatenate([q.caps for q in pb])) \
-        + rel[:, None, None, :3, 3]
-    ca = np.concatenate([q.caps for q in pa])
+    ``(T, 4, 4)``), raised by their slabs: ``(A, B, T)``, all capsules in one pass."""
+    ca, cb = (np.concatenate([q.caps for q in pieces]) for pieces in (pa, pb))
+    ra, rb = (np.concatenate([q.radii for q in pieces]) for pieces in (pa, pb))
+    seg_b = np.einsum("tij,nkj->tnki", rel[:, :3, :3], cb) + rel[:, None, None, :3, 3]
     d = segment_distance(ca[None, :, None, 0], ca[None, :, None, 1],
                          seg_b[:, None, :, 0], seg_b[:, None, :, 1])
-    d -= np.concatenate([q.radii for q in pa])[None, :, None]
-    d -= np.concatenate([q.radii for q in pb])[None, None, :]
+    d -= ra[None, :, None]
+    d -= rb[None, None, :]
+    # a capsule with a slab: its material is also that far from the other's segments
+    sa, sb = (np.concatenate([q.slabs for q in pieces]) for pieces in (pa, pb))
+    for i in np.flatnonzero(np.isfinite(sa[:, 3])):
+        s = seg_b @ sa[i, :3] - ca[i].mean(0) @ sa[i, :3]  # (T, B, 2)
+        d[:, i, :] = np.maximum(d[:, i, :], _slab_gap(s, sa[i, 3]) - rb[None, :])
+    for k in np.flatnonzero(np.isfinite(sb[:, 3])):
+        n_t = rel[:, :3, :3] @ sb[k, :3]  # (T, 3): the normal, and the plane's offset, in a's
+        off = np.einsum("ti,ti->t", rel[:, :3, :3] @ cb[k].mean(0) + rel[:, :3, 3], n_t)
+        s = np.einsum("nkj,tj->tnk", ca, n_t) - off[:, None, None]  # (T, A, 2)
+        d[:, :, k] = np.maximum(d[:, :, k], _slab_gap(s, sb[k, 3]) - ra[None, :])
     starts = [np.cumsum([0] + [len(q.caps) for q in pieces])[:-1] for pieces in (pa, pb)]
     d = np.minimum.reduceat(np.minimum.reduceat(d, starts[0], axis=1), starts[1], axis=2)
     return d.transpose(1, 2, 0)
+
+
+def _slab_gap(s: np.ndarray, half: float) -> np.ndarray:
+    """Distance ``(...)`` from the slab ``|x . n| <= half`` to segments whose ends have heights
+    ``s`` ``(..., 2)`` over its mid-plane (the heights along a segment are linear)."""
+    lo, hi = s.min(-1), s.max(-1)
+    return np.maximum(np.maximum(lo - half, -half - hi), 0.0)
 
 
 def _affine(m: np.ndarray) -> list:

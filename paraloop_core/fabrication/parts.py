@@ -50,7 +50,9 @@ class Part:
     with (-1: the base on the table); ``down`` ``(3,)`` the face laid on the bed (home frame,
     unit; zero: :mod:`layout` chooses); ``role`` ``"link"``, ``"pin"``, ``"cap"``,
     ``"base"``; ``csg`` the tree ``manifold`` was evaluated from (:mod:`csg`; None: only
-    the mesh is known)."""
+    the mesh is known); ``slabs`` ``(n, 4)`` (None: none) a unit normal and a half thickness
+    per capsule: its material also lies within that distance of the plane through the
+    capsule's midpoint (inf: no slab), so a flat disc is bounded by more than its ball."""
 
     name: str
     link: int
@@ -61,6 +63,7 @@ class Part:
     down: np.ndarray = field(default_factory=lambda: np.zeros(3))
     role: str = "link"
     csg: csg.Node | None = None
+    slabs: np.ndarray | None = None
 
 
 def cylinder(p0: np.ndarray, p1: np.ndarray, radius: float, segments: int = SEGMENTS,
