@@ -244,15 +244,33 @@ def _subsamples(u: np.ndarray, idx: np.ndarray, counts: np.ndarray) -> np.ndarra
     return np.unique((lo + (hi - lo) * (k + 0.5) / np.repeat(n, n)) % 1.0)
 
 
-def _step(asm: Assembly, a: int, b: int, caps: np.ndarray, radii: np.ndarray,
-          u: np.ndarray) -> np.ndarray:
-    """How far (mm) group b's points move relative to group a about each sample."""
-    ends = caps.reshape(-1, 3) / asm.scale
-    center = 0.5 * (ends.min(0) + ends.max(0))
-    reach = float(np.max(np.linalg.norm(ends - center, axis=1))) + radii.max() / asm.scale
-    jf = asm.joint_factors
-    return asm.scale * sound_displacement_bounds(jf, a, b, center, reach, u,
-                                                 try_motion_bound(jf, a, b, center))
+class _Steps:
+    """How far (mm) group b's points (within its capsules ``caps``, ``radii``) move relative
+    to group a about each sample: the joint angles' bound, cheap and finite everywhere; after
+    :meth:`tighten`, the smaller of it and the speed bound (costly where the motion passes
+    near a singular pose, so computed only where the first leaves a sample unproven). Both
+    are sound (:func:`motion_bound.sound_displacement_bounds`)."""
+
+    def __init__(self, asm: Assembly, a: int, b: int, caps: np.ndarray, radii: np.ndarray):
+        ends = caps.reshape(-1, 3) / asm.scale
+        self.center = 0.5 * (ends.min(0) + ends.max(0))
+        self.reach = float(np.max(np.linalg.norm(ends - self.center, axis=1))) + \
+            radii.max() / asm.scale
+        self.asm, self.a, self.b = asm, a, b
+        self.bound, self.tight = None, False
+
+    def __call__(self, u: np.ndarray) -> np.ndarray:
+        jf = self.asm.joint_factors
+        return self.asm.scale * sound_displacement_bounds(jf, self.a, self.b, self.center,
+                                                          self.reach, u, self.bound)
+
+    def tighten(self) -> bool:
+        """Take the speed bound in too; True the first time (the bounds then change)."""
+        if self.tight:
+            return False
+        self.tight = True
+        self.bound = try_motion_bound(self.asm.joint_factors, self.a, self.b, self.center)
+        return True
 
 
 def _printed(asm: Assembly, link: int) -> m3d.Manifold:
@@ -316,10 +334,13 @@ def verify(asm: Assembly, samples: int = 720, progress: Progress | None = None) 
         cb = np.concatenate([q.caps for q in pb])
         rb = np.concatenate([q.radii for q in pb])
         gap, vol, n_exact = _gaps(asm, a, b, pa, pb, u0, search)
-        u = u0
+        u, steps = u0, _Steps(asm, a, b, cb, rb)
         for _ in range(REFINE_ROUNDS):  # refine cells whose motion bound eats their margin
-            delta = _step(asm, a, b, cb, rb, u)
+            delta = steps(u)
             bad = np.nonzero((gap - delta <= required) & (gap > required))[0]
+            if len(bad) and steps.tighten():  # the speed bound first, then finer samples
+                delta = steps(u)
+                bad = np.nonzero((gap - delta <= required) & (gap > required))[0]
             if not len(bad) or np.any(vol > 1e-9):
                 break
             new = _subsamples(u, bad, np.ceil(2 * delta[bad] / (gap[bad] - required)))
@@ -331,7 +352,7 @@ def verify(asm: Assembly, samples: int = 720, progress: Progress | None = None) 
             u = np.concatenate([u, new])[order]
             gap, vol = np.concatenate([gap, g_new])[order], np.concatenate([vol, v_new])[order]
         else:
-            delta = _step(asm, a, b, cb, rb, u)
+            delta = steps(u)
         i_min = int(np.argmin(gap))
         pairs_out.append({
             "links": [a, b], "adjacent": joint is not None,
