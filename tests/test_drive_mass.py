@@ -64,6 +64,10 @@ def test_the_report_entry_and_its_settings():
     assert d["peak_torque_n_m"] >= np.abs(d["torque_n_m"]).max() * (1 - 1e-5)
     assert np.ptp(d["torque_n_m"]) > 0
     assert d["gravity_home_m_s2"] == pytest.approx(-9.81 * pr.base.up)
+    assert d["worst_speed_ratio"] == pytest.approx(
+        drive.smooth_drive_penalty(asm.joint_factors, d["motor"]))
+    assert d["worst_speed_ratio"] < drive.HOLD_RATIO  # a smooth loop: no warning
+    assert not any("cannot hold" in w for w in pr.report["warnings"])
     # the design's motor is used as given; twice the masses, twice the torque
     masses, centers = base.link_masses(asm, F.PLA.density_g_cm3)
     args = (asm.joint_factors, asm.scale)
@@ -83,3 +87,17 @@ def test_drive_line_says_why_when_the_torque_is_missing():
     assert drive_mass.material(1000.0) == "density 1000 kg/m^3"
     line = drive_mass.drive_line(F.printed().report["drive"])
     assert "N*m" in line and "PLA 1240 kg/m^3" in line and "resting link" in line
+
+
+def test_a_loop_one_motor_cannot_hold_is_named(monkeypatch):
+    """Past :data:`drive.HOLD_RATIO` the export warns that a motor cannot hold the loop and
+    says what would work (here the limit lowered under the fixture's smooth loop)."""
+    from paraloop_core.fabrication import printable
+
+    monkeypatch.setattr(printable, "HOLD_RATIO", 1.0)
+    cand = printable.Candidate("test loop", 4, lambda: (F.real(), None))
+    pr = printable.make([cand], printable.Options(size_mm=F.SIZE_MM, samples=16,
+                                                  ground=False))
+    ratio = pr.report["drive"]["worst_speed_ratio"]
+    warning = next(w for w in pr.report["warnings"] if "cannot hold" in w)
+    assert f"{ratio:.0f} times slower" in warning and "smooth-drive" in warning

@@ -249,6 +249,29 @@ def test_choice_names_every_failure_and_keeps_the_sized():
         printable.choose([good], small)
 
 
+@pytest.mark.parametrize("lifted", [False, True])
+def test_more_candidates_are_sized_while_each_would_print_over_supports(lifted, monkeypatch):
+    """Sizing stops after :data:`printable.ENOUGH_SIZED` candidates, or
+    :data:`printable.FLAT_SEARCH` more while each one's own layouts leave a link no flat."""
+    real = F.real()
+    monkeypatch.setattr(printable, "_lifted_by_plan", lambda *a: lifted)
+    cands = [printable.Candidate(f"c{k}", 4, lambda: (real, None)) for k in range(10)]
+    # a size that meets no aims: the count alone stops the sizing
+    ranked, tried = printable.choose(cands, printable.Options(size_mm=0.6 * F.SIZE_MM))
+    assert not any(plan.aims_met for *_, plan in ranked)
+    extra = printable.FLAT_SEARCH if lifted else 0
+    assert len(ranked) == len(tried) == printable.ENOUGH_SIZED + extra
+
+
+def test_the_sizing_predicts_the_links_a_build_lifts():
+    """:func:`printable._lifted_by_plan` agrees with the built parts' print flats (before the
+    grounding rod re-lays a joint)."""
+    real, opts = F.real(), printable.Options(size_mm=F.SIZE_MM)
+    plan = printable._plan(real, opts)
+    asm, plan, _ = printable._fit_and_build(real, None, plan, opts)
+    assert printable._lifted_by_plan(real, plan, opts) == bool(printable._lifted(asm))
+
+
 def test_print_in_place_is_refused_at_once():
     cand = printable.Candidate("roomy", 4, lambda: (F.real(), None))
     with pytest.raises(FabricationError, match="lean up to") as err:

@@ -50,6 +50,7 @@ from paraloop_core.fabrication import (
 from paraloop_core.fabrication.assembly import Assembly
 from paraloop_core.fabrication.profiles import Options, Printer
 from paraloop_core.linkage import loops
+from paraloop_core.linkage.drive import HOLD_RATIO
 from paraloop_core.realization.certified import Realization
 
 Progress = Callable[[float, str], None]
@@ -58,6 +59,9 @@ MAX_CANDIDATES = 16
 #: Sized candidates after which the choice is made even when none meets the aims (each more
 #: costs a realization and a sizing; the best of three is rarely beaten later).
 ENOUGH_SIZED = 3
+#: More candidates sized past :data:`ENOUGH_SIZED` while every one sized would print a link
+#: over supports by its own layouts (:func:`_lifted_by_plan`).
+FLAT_SEARCH = 2
 
 
 @dataclass(frozen=True)
@@ -150,7 +154,7 @@ def choose(candidates: Iterable[Candidate], opts: Options, progress: Progress | 
     """The sized candidates, best first (module docstring), and what was tried. Raises
     :class:`FabricationError` naming every failure when none can be sized, and for joints
     printed in place on a loop whose axes do not allow it (:func:`joints.in_place_refusal`)."""
-    tried, sized = [], []
+    tried, sized, lifted = [], [], []
     for n, cand in enumerate(candidates):
         if n >= MAX_CANDIDATES:
             break
@@ -172,13 +176,25 @@ def choose(candidates: Iterable[Candidate], opts: Options, progress: Progress | 
                      f"{plan.radii.min() * sizing.FLATS:.1f} mm wide or more"
                      + ("" if plan.aims_met else f" ({sizing.LEVELS[plan.level]})"))
         sized.append((cand, real, ee, plan))
-        if sum(c[3].aims_met for c in sized) >= (1 if opts.size_mm is not None else 2) or \
-                len(sized) >= ENOUGH_SIZED:
-            break  # two that meet the aims (the design's loop first): enough to choose from
+        lifted.append(_lifted_by_plan(real, plan, opts))
+        enough = sum(c[3].aims_met for c in sized) >= (1 if opts.size_mm is not None else 2) \
+            or len(sized) >= ENOUGH_SIZED
+        # two that meet the aims (the design's loop first) are enough to choose from, unless
+        # each would print a link over supports: then a few more
+        if enough and (not all(lifted) or len(sized) >= ENOUGH_SIZED + FLAT_SEARCH):
+            break
     if not sized:
         raise FabricationError("no realization of this design can be printed with real "
                                "joints: " + "; ".join(tried), "bad-parameters")
     return sorted(sized, key=lambda c: _score(c[3]), reverse=True), tried
+
+
+def _lifted_by_plan(real: Realization, plan: sizing.Plan, opts: Options) -> bool:
+    """Whether some link of ``plan`` has no print flat (:func:`flat.lies_flat`) with the
+    sizing's own joint layouts (the grounding rod's bore may still take more)."""
+    need = sizing.flat_radii(rows.bounds_of(real), plan.scale, plan.layouts,
+                             opts.printer.wall_mm)
+    return bool(np.any((need - plan.radii) * sizing.APOTHEM > -flat.FLAT_SLACK + 1e-9))
 
 
 #: How far the end-effector link's bars reach past P's corners L and R towards its centroid
@@ -295,6 +311,13 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
     up = b.up if b is not None else np.array([0.0, 0.0, 1.0])
     report["drive"] = drive_mass.entry(asm.joint_factors, asm.scale, masses, centers, resting,
                                        drive, opts.material, up)
+    ratio = report["drive"].get("worst_speed_ratio", 0.0)
+    if ratio > HOLD_RATIO:
+        report["warnings"].append(
+            f"in part of its turn the motor's joint moves {ratio:.0f} times slower than the "
+            "fastest joint: a motor cannot hold the loop there (its links swing under gravity "
+            "and the physics check loses it); turn it by hand, or design a smoother motion "
+            "(the smooth-drive criterion)")
     tq = report["drive"].get("peak_torque_n_m", plan.torque_nm)
     across = stiffness.across_gravity(asm.joint_factors, list(asm.bars), resting, up)
     defl = stiffness.deflections(plan.deflection.lengths, plan.radii, across,

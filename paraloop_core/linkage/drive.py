@@ -23,6 +23,13 @@ TWO_PI = 2.0 * np.pi
 #: is smaller by more than this factor (a grounded motor needs no moving cables).
 PREFER_FACTOR = 1.5
 SAMPLES = 256  #: default samples per cycle of each sample family (:func:`motor_angles`)
+#: Worst peak speed ratio (:func:`smooth_drive_penalty`) above which one motor cannot hold a
+#: loop: in the slow stretch of its turn another joint turns this many times faster, so the
+#: motor's least play or lag moves the links that much more and they swing under gravity.
+#: Measured with the physics check on printed random designs: every loop with a ratio up to
+#: 46 completed its cycle, every one from 62 up lost it (the ratio is the motion's: the same
+#: for all nine loops); the five examples are at 2 - 5.
+HOLD_RATIO = 50.0
 _CHAIN = np.where(np.arange(6)[:, None] <= 3, np.tri(6, k=-1), -np.tri(6).T)  # link_poses
 
 
