@@ -137,8 +137,8 @@ def _roomy_candidates(sol: Solution, made: list[Solution]) -> Iterator[Candidate
 def candidates(sol: Solution, printer: printable.Printer, made: list[Solution]
                ) -> Iterator[Candidate]:
     """Lazy candidates (module docstring), best first: the design's loop (roomiest first;
-    after :data:`FIRST_OWN` of them, without an end-effector, every loop's roomy
-    realization), then every other loop;
+    after :data:`FIRST_OWN` of them, or after the first where it found none, without an
+    end-effector, every loop's roomy realization), then every other loop;
     each solution a candidate realizes is appended to ``made`` (the chosen one's result is
     written)."""
     _, length, ext = expected_size(sol, printer)
@@ -152,8 +152,12 @@ def candidates(sol: Solution, printer: printable.Printer, made: list[Solution]
                                                            RHO_FRACTIONS[1]),
              (mine, PIN_FRACTIONS[3], RHO_FRACTIONS[0])]
     later = [(i, PIN_FRACTIONS[0], RHO_FRACTIONS[1]) for i in others]
+    start, roomy_left = len(made), sol.design.end_effector is None
     for n, (loop, pin, rf) in enumerate(order + later):
-        if n == FIRST_OWN and sol.design.end_effector is None:
+        # the roomy ones after FIRST_OWN, or at once where the first search found none
+        # (the second repeats its search with thinner bars: rarely found, costly when not)
+        if roomy_left and (n == FIRST_OWN or n == 1 and len(made) == start):
+            roomy_left = False
             yield from _roomy_candidates(sol, made)
         d_fraction = pin * ext / length
 

@@ -8,6 +8,8 @@ than the paper's shortest polyline on designs whose shortest polylines pass clos
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from independent.dense_check import check_result
@@ -81,3 +83,38 @@ def test_run_hint_over_all_offsets_finds_the_search_answer():
 def _factors(sol: pl.Solution, loop: int) -> tuple:
     jf, unit = sol.search_factors(loop)
     return jf, dict(sol.design.realization.fixed), unit
+
+
+@pytest.mark.parametrize("first_found", [True, False])
+def test_roomy_candidates_follow_a_first_search_that_found_none(first_found, monkeypatch):
+    """The design's loop is tried twice before the roomy realizations, unless its first
+    search found nothing (the second repeats it with thinner bars): then they come next."""
+    from types import SimpleNamespace
+
+    from paraloop_core.errors import RealizationError
+
+    tv8 = Path(__file__).resolve().parents[1] / "assets" / "designs" / "tv8.json"
+    sol = pl.solve(pl.load_design(tv8), realize=False)
+
+    def variant(*args, **kwargs):
+        if not first_found:
+            raise RealizationError("no realization in the budget", "not-found")
+        return SimpleNamespace(realization=None, end_effector=None)
+
+    monkeypatch.setattr(printed, "realize_variant", variant)
+    monkeypatch.setattr(printed, "_roomy_candidates", lambda sol, made: iter(
+        [printable.Candidate("roomy", 0, lambda: (None, None))]))
+    made: list = []
+    cands = printed.candidates(sol, printable.Options().printer, made)
+    first = next(cands)
+    if first_found:
+        first.make()
+    else:
+        with pytest.raises(RealizationError):
+            first.make()
+    labels = [next(cands).label for _ in range(3)]
+    if first_found:
+        assert "bars 0.35 d" in labels[0] and labels[1] == "roomy"
+    else:
+        assert labels[0] == "roomy" and "bars 0.35 d" in labels[1]
+    assert labels.count("roomy") == 1
