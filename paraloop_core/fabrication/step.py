@@ -19,6 +19,7 @@ import os
 import tempfile
 
 import numpy as np
+from OCP.BinTools import BinTools
 from OCP.Bnd import Bnd_Box
 from OCP.BRep import BRep_Builder
 from OCP.BRepAlgoAPI import BRepAlgoAPI_Common, BRepAlgoAPI_Cut, BRepAlgoAPI_Fuse
@@ -252,27 +253,63 @@ def shape(n: csg.Node, fallbacks: list | None = None) -> TopoDS_Shape:
     raise ValueError("a mesh has no exact solid: write the part faceted (mesh_solid)")
 
 
-def part_solid(part) -> tuple[TopoDS_Shape, str]:
+def tree_solid(tree: csg.Node, volume_mm3: float) -> tuple[TopoDS_Shape, str] | None:
+    """The exact solid of ``tree`` and its kind (``"exact"``, ``"exact, polyhedral
+    fillet"``), or None where OpenCascade refuses a boolean or the solid is invalid or off
+    the mesh's ``volume_mm3`` by more than :data:`VOLUME_TOL` (module docstring)."""
+    fallbacks: list = []
+    try:
+        s = solids_of(shape(tree, fallbacks))
+    except (RuntimeError, ValueError, Standard_Failure):
+        return None
+    if len(s) != 1:
+        return None
+    unify = ShapeUpgrade_UnifySameDomain(s[0], True, True, True)
+    unify.Build()
+    solid = unify.Shape()
+    if BRepCheck_Analyzer(solid).IsValid() and \
+            abs(step_hull.volume(solid) / volume_mm3 - 1.0) <= VOLUME_TOL:
+        return solid, "exact, polyhedral fillet" if fallbacks else "exact"
+    return None
+
+
+def exact_parts(parts) -> list:
+    """The parts (or hardware) of ``parts`` whose tree may have an exact solid."""
+    return [p for p in parts if p.csg is not None and not csg.faceted(p.csg)]
+
+
+def part_solid(part, made: dict[int, tuple | None] | None = None
+               ) -> tuple[TopoDS_Shape, str]:
     """A :class:`parts.Part` (or :class:`assembly.Hardware`) as one OpenCascade solid and
-    its kind: ``"exact"``, ``"exact, polyhedral fillet"`` or ``"faceted"`` (module
-    docstring). The exact solid is kept only when valid and within :data:`VOLUME_TOL` of
-    the mesh's volume; else (or where OpenCascade refuses a boolean) the mesh's faceted
-    solid stands in."""
+    its kind: :func:`tree_solid`'s (``made``: its answers already made, by the part's
+    ``id``), else (or for a mesh) the mesh's faceted solid (``"faceted"``)."""
     man = part.manifold if hasattr(part, "manifold") else part.solid
     if part.csg is not None and not csg.faceted(part.csg):
-        fallbacks: list = []
-        try:
-            s = solids_of(shape(part.csg, fallbacks))
-        except (RuntimeError, ValueError, Standard_Failure):
-            s = []
-        if len(s) == 1:
-            unify = ShapeUpgrade_UnifySameDomain(s[0], True, True, True)
-            unify.Build()
-            solid = unify.Shape()
-            if BRepCheck_Analyzer(solid).IsValid() and \
-                    abs(step_hull.volume(solid) / man.volume() - 1.0) <= VOLUME_TOL:
-                return solid, "exact, polyhedral fillet" if fallbacks else "exact"
+        exact = made[id(part)] if made is not None and id(part) in made else \
+            tree_solid(part.csg, man.volume())
+        if exact is not None:
+            return exact
     return mesh_solid(man), "faceted"
+
+
+def solid_bytes(solid: TopoDS_Shape) -> bytes:
+    """``solid`` in OpenCascade's binary BRep format (every number exact)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        path = os.path.join(tmp, "solid.brep")
+        BinTools.Write_s(solid, path)
+        with open(path, "rb") as f:
+            return f.read()
+
+
+def solid_from_bytes(data: bytes) -> TopoDS_Shape:
+    """The solid :func:`solid_bytes` wrote."""
+    with tempfile.TemporaryDirectory() as tmp:
+        path = os.path.join(tmp, "solid.brep")
+        with open(path, "wb") as f:
+            f.write(data)
+        solid = TopoDS_Shape()
+        BinTools.Read_s(solid, path)
+        return solid
 
 
 def step_bytes(items: list[tuple[str, TopoDS_Shape, np.ndarray]], label: str) -> bytes:
@@ -305,16 +342,18 @@ def step_bytes(items: list[tuple[str, TopoDS_Shape, np.ndarray]], label: str) ->
             return f.read()
 
 
-def step_files(asm: Assembly, colors: dict[str, np.ndarray], steel: np.ndarray
+def step_files(asm: Assembly, colors: dict[str, np.ndarray], steel: np.ndarray,
+               made: dict[int, tuple | None] | None = None
                ) -> tuple[list[tuple[str, bytes]], dict[str, str]]:
     """``parts.step`` (each printed part one named solid, mm, the assembled home pose: as the
     STL files) and ``assembly.step`` (those and the metal hardware, in ``colors`` (RGB by
-    part name) and ``steel``), and each part's kind of solid (:func:`part_solid`)."""
+    part name) and ``steel``), and each part's kind of solid (:func:`part_solid`, ``made``
+    its exact solids made before)."""
     printed, kinds = [], {}
     for p in asm.parts:
-        s, kinds[p.name] = part_solid(p)
+        s, kinds[p.name] = part_solid(p, made)
         printed.append((p.name, s, colors[p.name]))
-    hardware = [(f"{h.role.replace(' ', '_')}_{h.joint}_{k}", part_solid(h)[0], steel)
+    hardware = [(f"{h.role.replace(' ', '_')}_{h.joint}_{k}", part_solid(h, made)[0], steel)
                 for k, h in enumerate(asm.hardware)]
     return ([("parts.step", step_bytes(printed, "paraloop parts")),
              ("assembly.step", step_bytes(printed + hardware, "paraloop assembly"))], kinds)

@@ -64,8 +64,42 @@ def _serve() -> None:
     from paraloop_core.fabrication import step
 
     reader.join()
-    answer.write(pickle.dumps(step.step_files(*pickle.loads(data[0]))))
+    job, colors, steel = pickle.loads(data[0])
+    made = _shared(step, step.exact_parts(job.parts)) if cores() >= 2 else None
+    answer.write(pickle.dumps(step.step_files(job, colors, steel, made)))
     answer.close()
+
+
+def _shared(step, parts: list) -> dict[int, tuple | None]:
+    """:func:`step.tree_solid` of ``parts``, every other one made by a forked copy of this
+    helper (OpenCascade loaded, the parts in memory): once the export has written its other
+    files, both cores make solids. The copy's solids come back exact (binary BRep); where
+    it fails, this process makes them (``part_solid`` finds them missing)."""
+    theirs = parts[1::2]
+    read, write = os.pipe()
+    pid = os.fork()
+    if pid == 0:  # the copy: its share, then gone without running any exit handler
+        os.close(read)
+        try:
+            out = []
+            for p in theirs:
+                made = step.tree_solid(p.csg, p.manifold.volume())
+                out.append(None if made is None else (step.solid_bytes(made[0]), made[1]))
+            with os.fdopen(write, "wb") as f:
+                f.write(pickle.dumps(out))
+        finally:
+            os._exit(0)
+    os.close(write)
+    made = {id(p): step.tree_solid(p.csg, p.manifold.volume()) for p in parts[0::2]}
+    with os.fdopen(read, "rb") as f:
+        data = f.read()
+    os.waitpid(pid, 0)
+    try:
+        for p, got in zip(theirs, pickle.loads(data), strict=True):
+            made[id(p)] = None if got is None else (step.solid_from_bytes(got[0]), got[1])
+    except (pickle.UnpicklingError, EOFError, ValueError):
+        pass  # the copy failed: its parts are made by step_files
+    return made
 
 
 class StepJob:
