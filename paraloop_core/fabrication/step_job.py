@@ -6,9 +6,10 @@ Ctrl-C reaches only the export, which stops it; its imports overlap the sizing),
 the parts once they are built, before they are verified (:func:`printable.make`'s
 ``on_parts``), and collects ``parts.step`` and ``assembly.step`` after the meshes and the
 guide are written. The helper evaluates the same trees with the same code
-(:func:`step.step_files`); the parts' meshes travel as float64 arrays (the :mod:`copyreg`
-reducer below). On one core, or when the helper fails or dies, the solids are made here as
-before: the files never depend on it.
+(:func:`step.step_files`), every other exact solid in a forked copy of itself (both cores
+once the export's other files are written; :func:`_shared`); the parts' meshes travel as
+float64 arrays (the :mod:`copyreg` reducer below). On one core, or when the helper fails
+or dies, the solids are made here as before: the files never depend on it.
 """
 
 from __future__ import annotations
