@@ -75,7 +75,10 @@ def test_print_flat_is_the_lowest_face(which):
         assert h.max() == pytest.approx(level, abs=F.float32_slack(tm.vertices))
         on = (tm.triangles @ p.down).min(axis=1) > level - 1e-4
         face = tm.area_faces[on].sum()
-        assert np.all(tm.face_normals[on] @ p.down > 0.99)
+        # the faces on the plane face the bed; a sliver of the float32 mesh may tilt (one of
+        # 3e-5 mm^2 tilted 8.5 deg under another BLAS kernel): its area is nothing
+        tilted = on & (tm.face_normals @ p.down <= 0.99)
+        assert tm.area_faces[tilted].sum() <= 1e-4 * face
         length = float(np.linalg.norm(bar[0][1] - bar[0][0]))
         if flat.lies_flat(asm.slack[i]):
             assert face >= r * length * 0.9  # a hexagon's side is its corner radius
