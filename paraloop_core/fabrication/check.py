@@ -273,6 +273,12 @@ class _Steps:
         return True
 
 
+def _unproven(gap: np.ndarray, delta: np.ndarray, required: float) -> np.ndarray:
+    """Indices of the samples whose gap keeps the required one there but not, less the
+    motion bound ``delta``, over their whole cell."""
+    return np.nonzero((gap - delta <= required) & (gap > required))[0]
+
+
 def _printed(asm: Assembly, link: int) -> m3d.Manifold:
     """Link ``link``'s printed parts (not the hardware: a thrust washer touches both links by
     design), for the clearance between two printed links of one joint."""
@@ -337,10 +343,10 @@ def verify(asm: Assembly, samples: int = 720, progress: Progress | None = None) 
         u, steps = u0, _Steps(asm, a, b, cb, rb)
         for _ in range(REFINE_ROUNDS):  # refine cells whose motion bound eats their margin
             delta = steps(u)
-            bad = np.nonzero((gap - delta <= required) & (gap > required))[0]
+            bad = _unproven(gap, delta, required)
             if len(bad) and steps.tighten():  # the speed bound first, then finer samples
                 delta = steps(u)
-                bad = np.nonzero((gap - delta <= required) & (gap > required))[0]
+                bad = _unproven(gap, delta, required)
             if not len(bad) or np.any(vol > 1e-9):
                 break
             new = _subsamples(u, bad, np.ceil(2 * delta[bad] / (gap[bad] - required)))

@@ -194,7 +194,7 @@ def _lifted_by_plan(real: Realization, plan: sizing.Plan, opts: Options) -> bool
     sizing's own joint layouts (the grounding rod's bore may still take more)."""
     need = sizing.flat_radii(rows.bounds_of(real), plan.scale, plan.layouts,
                              opts.printer.wall_mm)
-    return bool(np.any((need - plan.radii) * sizing.APOTHEM > -flat.FLAT_SLACK + 1e-9))
+    return not all(flat.lies_flat(s) for s in (plan.radii - need) * sizing.APOTHEM)
 
 
 #: How far the end-effector link's bars reach past P's corners L and R towards its centroid

@@ -86,11 +86,11 @@ def rods(asm: Assembly, b: base.Base, opts: Options) -> list[Rod]:
     fits = []
     for rod in stock:
         j = rod_joint(asm, b.joint, opts, rod, side, True)
-        if all(asm.plan.radii[i] * sizing.APOTHEM - flat.FLAT_SLACK >= flat.least_depth(
+        if all(flat.lies_flat(asm.plan.radii[i] * sizing.APOTHEM - flat.least_depth(
                 (asm.bars[i][0][0], asm.bars[i][-1][1]),
                 [(j if i == b.joint else asm.joints[i], False),
                  (j if (i - 1) % 6 == b.joint else asm.joints[(i - 1) % 6], True)],
-                opts.printer.wall_mm) for i in (b.joint, (b.joint + 1) % 6)):
+                opts.printer.wall_mm)) for i in (b.joint, (b.joint + 1) % 6)):
             fits.append(rod)
     return fits[:2] or [opts.rod]
 

@@ -275,7 +275,11 @@ def tree_solid(tree: csg.Node, volume_mm3: float) -> tuple[TopoDS_Shape, str] | 
 
 def exact_parts(parts) -> list:
     """The parts (or hardware) of ``parts`` whose tree may have an exact solid."""
-    return [p for p in parts if p.csg is not None and not csg.faceted(p.csg)]
+    return [p for p in parts if _has_exact_tree(p)]
+
+
+def _has_exact_tree(part) -> bool:
+    return part.csg is not None and not csg.faceted(part.csg)
 
 
 def part_solid(part, made: dict[int, tuple | None] | None = None
@@ -284,7 +288,7 @@ def part_solid(part, made: dict[int, tuple | None] | None = None
     its kind: :func:`tree_solid`'s (``made``: its answers already made, by the part's
     ``id``), else (or for a mesh) the mesh's faceted solid (``"faceted"``)."""
     man = part.manifold if hasattr(part, "manifold") else part.solid
-    if part.csg is not None and not csg.faceted(part.csg):
+    if _has_exact_tree(part):
         exact = made[id(part)] if made is not None and id(part) in made else \
             tree_solid(part.csg, man.volume())
         if exact is not None:
