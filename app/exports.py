@@ -11,7 +11,6 @@ export`` writes it (parts, plates, assembly, guide, ``report.json``, the printed
 from __future__ import annotations
 
 import io
-import json
 import zipfile
 from collections.abc import Callable
 from dataclasses import replace
@@ -26,6 +25,7 @@ from paraloop_core.errors import FabricationError
 from paraloop_core.fabrication import animate, printable, profiles, sizing, spaces
 from paraloop_core.linkage import drive_plan
 from paraloop_core.linkage.drive import TWO_PI
+from paraloop_core.result import json_text
 
 #: Carving orders offered by the panel: target links first to last, each carved by the later.
 ORDER_PRESETS = {"base first": (0, 1, 2, 3, 4, 5), "end first": (3, 2, 4, 1, 5, 0)}
@@ -40,7 +40,7 @@ def slug(name: str) -> str:
 
 def export_files(solution: pipeline.Solution) -> list[tuple[str, bytes]]:
     """Files ``(name, content)`` exported for a solved design: the result JSON."""
-    result = json.dumps(pipeline.result_to_dict(solution), indent=1) + "\n"
+    result = json_text(pipeline.result_to_dict(solution))
     return [("paraloop-result.json", result.encode("utf-8"))]
 
 

@@ -31,7 +31,7 @@ from paraloop_core.fabrication.step_job import StepJob
 from paraloop_core.linkage import drive_plan
 from paraloop_core.pipeline import Solution
 from paraloop_core.realization import polyline, realize, roomy
-from paraloop_core.result import result_to_dict
+from paraloop_core.result import json_text, result_to_dict
 
 #: Pin lengths (the offset d) of the candidates as shares of the loop's extent, best first:
 #: about 20 mm at a desk size, room for the screw's head and nut recesses and two diameters
@@ -213,8 +213,6 @@ def export(sol: Solution, opts: Options | None = None, *, rhino: bool = False,
 def _export(sol: Solution, opts: Options, rhino: bool, simulate: bool,
             progress: Progress | None, job: StepJob
             ) -> tuple[list[tuple[str, bytes]], dict, Solution]:
-    import json
-
     def submit(asm) -> None:  # the parts built: their STEP solids start on the helper
         job.submit(asm, export_files.step_colors(asm), export_files.STEEL)
 
@@ -238,7 +236,7 @@ def _export(sol: Solution, opts: Options, rhino: bool, simulate: bool,
     if progress is not None:
         progress(0.97, "STEP solids")
     files += export_files.step_files(printed.assembly, report, job)  # last: the slowest
-    result = json.dumps(result_to_dict(chosen), indent=1, allow_nan=False) + "\n"
+    result = json_text(result_to_dict(chosen))
     files.append(("result.json", result.encode()))
     files.append(("report.json", export_files.report_json(report)))
     return files, report, chosen

@@ -116,10 +116,8 @@ def write_json_atomic(path: Path, data: dict[str, Any]) -> None:
     """Strict JSON to a temporary file beside ``path``, then a rename: a failure never leaves a
     half-written file or the temporary behind. A NaN or infinite value raises NumericalError
     naming where it is (and writes nothing)."""
-    import json
-
     try:
-        text = json.dumps(data, indent=1, allow_nan=False) + "\n"
+        text = json_text(data)
     except ValueError:
         raise_non_finite(data)
         raise
@@ -131,6 +129,31 @@ def write_json_atomic(path: Path, data: dict[str, Any]) -> None:
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
+
+
+def json_text(data: Any) -> str:
+    """Strict JSON text of ``data`` (ValueError on NaN or infinity): one object member or one
+    element of an array of objects per line, indented one space per level; any other array on
+    one line (a pose, a polynomial's coefficients). Readable, and ~10x faster than
+    ``json.dumps(indent=...)``: the leaves go through the C encoder, which ``indent`` disables."""
+    import json
+
+    leaf = json.JSONEncoder(allow_nan=False, separators=(", ", ": ")).encode
+
+    def text(node: Any, pad: str) -> str:
+        inner = pad + " "
+        if isinstance(node, dict) and node:
+            # a key that is not a string is spelled as json spells it ({1: 0} -> "1")
+            rows = (f"{inner}{leaf(k) if isinstance(k, str) else leaf({k: 0})[1:-4]}: "
+                    f"{text(v, inner)}" for k, v in node.items())
+        elif isinstance(node, (list, tuple)) and any(isinstance(v, dict) for v in node):
+            rows = (inner + text(v, inner) for v in node)
+        else:
+            return leaf(node)
+        brackets = "{}" if isinstance(node, dict) else "[]"
+        return brackets[0] + "\n" + ",\n".join(rows) + "\n" + pad + brackets[1]
+
+    return text(data, "") + "\n"
 
 
 def raise_non_finite(data: Any, where: str = "result") -> None:

@@ -16,6 +16,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 from conftest import numeric_paths
+from hypothesis import given
+from hypothesis import strategies as st
 
 from app.cli.main import main
 from paraloop_core import design as dm
@@ -218,6 +220,25 @@ def test_non_finite_values_never_reach_a_result():
         raise_non_finite({"loops": [{"singularity": 1.0}, {"singularity": float("nan")}]})
     with pytest.raises(NumericalError):
         write_json_atomic(Path("/nonexistent/never.json"), {"x": float("inf")})
+
+
+_JSON = st.recursive(
+    st.none() | st.booleans() | st.integers() | st.floats(allow_nan=False, allow_infinity=False)
+    | st.text(max_size=5),
+    lambda kids: st.lists(kids, max_size=4) | st.dictionaries(st.text(max_size=4), kids,
+                                                              max_size=4),
+    max_leaves=25)
+
+
+@given(_JSON)
+def test_result_json_text_is_the_same_json(data):
+    """The fast writer's text reads back as ``json.dumps`` of the same data does (key order,
+    numbers to the last bit, strings)."""
+    from paraloop_core.result import json_text
+
+    text = json_text(data)
+    assert text.endswith("\n") and json.loads(text) == json.loads(json.dumps(data))
+    assert json.dumps(json.loads(text)) == json.dumps(data)
 
 
 # --- outputs ------------------------------------------------------------------------------------
