@@ -9,7 +9,16 @@ import pytest
 from independent.segdist import segment_distance
 
 from paraloop_core.errors import FabricationError, RealizationError
-from paraloop_core.fabrication import bed, joints, printable, profiles, rows, sizing, stiffness
+from paraloop_core.fabrication import (
+    bed,
+    flat,
+    joints,
+    printable,
+    profiles,
+    rows,
+    sizing,
+    stiffness,
+)
 
 GENERIC = profiles.PRINTERS["generic"]
 ROD = profiles.DEFAULT_ROD
@@ -269,7 +278,39 @@ def test_the_sizing_predicts_the_links_a_build_lifts():
     real, opts = F.real(), printable.Options(size_mm=F.SIZE_MM)
     plan = printable._plan(real, opts)
     asm, plan, _ = printable._fit_and_build(real, None, plan, opts)
-    assert printable._lifted_by_plan(real, plan, opts) == bool(printable._lifted(asm))
+    off_flat = [i for i in range(6) if not flat.lies_flat(asm.slack[i])]
+    assert printable._lifted_by_plan(real, plan, opts) == bool(off_flat)
+    assert printable._keeled(asm) == off_flat and not printable._lifted(asm)
+
+
+def test_a_keel_that_fails_the_verification_is_taken_off(monkeypatch):
+    """Every link lifted (a flat 1 mm under its bar's face): each gets a keel; a pair the
+    verification fails loses the keels of its keeled links (rebuilt, grounded and verified
+    again; the others keep theirs), the report says so, and the STEP helper gets only the
+    final parts."""
+    monkeypatch.setattr(flat, "lift", lambda slack: 1.0)
+    monkeypatch.setattr(flat, "lies_flat", lambda slack: False)
+    real_verify, calls = printable.check.verify, []
+
+    def verify(asm, *args, **kwargs):
+        ver = real_verify(asm, *args, **kwargs)
+        calls.append([p.keel_mm for p in asm.links])
+        if len(calls) == 1:  # the first verification fails links 0 and 3
+            ver["pairs"][2]["colliding_samples"] = 5
+        return ver
+
+    monkeypatch.setattr(printable.check, "verify", verify)
+    handed = []
+    cand = printable.Candidate("test loop", 4, lambda: (F.real(), None))
+    out = printable.make([cand], printable.Options(size_mm=F.SIZE_MM, samples=F.SAMPLES),
+                         on_parts=handed.append)
+    assert out.report["verification"]["pairs"][2]["links"] == [0, 3]
+    assert all(k == 1.0 for k in calls[0]) and len(calls) == 2
+    assert [k for k in calls[1]] == out.report["keels_mm"] == [0.0, 1.0, 1.0, 0.0, 1.0, 1.0]
+    assert out.assembly.no_keel == {0, 3} and handed == [out.assembly]
+    assert any("the keel of links 0, 3 comes too close" in t
+               for t in out.report["choice"]["tried"])
+    assert any("links 0, 3 cannot lie on the bar's face" in w for w in out.report["warnings"])
 
 
 def test_print_in_place_is_refused_at_once():

@@ -14,8 +14,9 @@ the flat keeps every wall when that is at least the deepest point a wall needs
 (:func:`least_depth`, minimised over the turns), which :mod:`sizing` uses to size the bars and
 :mod:`layout` to pick the turn; a turn keeping less room than :data:`WALL_ROOM_MM` but at least
 :data:`MIN_ROOM_MM` is taken where none keeps the full room (:func:`lies_flat`). Where the
-room between the links does not allow so thick a bar, the link is cut deeper (:func:`lift`):
-it stands on its bosses' cut faces and its bar prints over support.
+room between the links does not allow so thick a bar, the link is cut deeper (:func:`lift`)
+and lies on a keel down to that cut (:func:`parts.keeled`), or, where the keel does not clear
+the other links, stands on its bosses' cut faces with its bar over support.
 """
 
 from __future__ import annotations

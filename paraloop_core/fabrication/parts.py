@@ -40,6 +40,8 @@ SEGMENTS = 48
 EPS_MM = 0.05
 #: Thinnest printed wall anywhere (mm): sheets of an open end-effector are this thick.
 MIN_WALL_MM = 0.8
+#: How far (mm) a lifted link's keel reaches past its print flat (the cut trims it there).
+KEEL_PAST_MM = 0.5
 
 
 @dataclass(frozen=True)
@@ -64,6 +66,8 @@ class Part:
     role: str = "link"
     csg: csg.Node | None = None
     slabs: np.ndarray | None = None
+    #: how far (mm) a lifted link's keel reaches below its bar's face (0: no keel)
+    keel_mm: float = 0.0
 
 
 def cylinder(p0: np.ndarray, p1: np.ndarray, radius: float, segments: int = SEGMENTS,
@@ -161,10 +165,27 @@ def fillet(j: Joint, upper: bool, bar: tuple[np.ndarray, np.ndarray], radius: fl
     return csg.Hull((boss(j, upper, n), stub))
 
 
+def keeled(body: csg.Node, bars: np.ndarray, radius: float, down: np.ndarray, depth: float
+           ) -> tuple[csg.Node, list[tuple]]:
+    """``body`` with each bar ``(p0, p1)`` swept ``depth`` mm along ``down`` (its flat face's
+    normal, perpendicular to the bar): the hull of the hexagonal bar and its copy moved down,
+    whose bottom face the print flat then cuts. A bosses' cut face far below the bar (a bore
+    that needs its wall) is so joined to the bar by a web on the bed instead of a bar printed
+    over support. And its capsules: about the bar moved ``depth / 2`` down, of radius
+    ``radius + depth / 2`` (every swept point is within ``depth / 2`` of its bar point moved
+    so)."""
+    d = np.asarray(down, float)
+    webs = tuple(csg.Hull((hex_node(p0, p1, radius, d),
+                           hex_node(p0 + depth * d, p1 + depth * d, radius, d)))
+                 for p0, p1 in bars)
+    caps = [(p0 + depth / 2 * d, p1 + depth / 2 * d, radius + depth / 2, -1) for p0, p1 in bars]
+    return csg.Union((body, *webs)), caps
+
+
 def link_part(i: int, bars: np.ndarray, radius: float, down: np.ndarray,
               joints: tuple[Joint, ...], printer_c: float, extra: m3d.Manifold | None = None,
               extra_capsules: list[tuple] = (), lift: float | None = 0.0,
-              segments: int = SEGMENTS) -> Part:
+              segments: int = SEGMENTS, keel: bool = True) -> Part:
     """Link ``i``: its ``bars`` ``(n, 2, 3)`` (mm, from ``S_i`` to ``E_i``; with an
     end-effector ``S_3 L``, ``R E_3``) of hex corner ``radius`` with flat face ``down``, its
     joints ``i - 1`` (upper side) and ``i`` (lower side), ``extra`` solids joined to it (P,
@@ -172,10 +193,15 @@ def link_part(i: int, bars: np.ndarray, radius: float, down: np.ndarray,
     down face (> 0 where a bore needs the cut deeper: the bar then prints over support; < 0
     into the bar; None: not cut, nor where it would cut an ``extra``); ``segments`` of round
     solids (fewer for trial parts). Raises :class:`FabricationError` when the cuts leave it
-    in pieces."""
+    in pieces. With ``keel``, a link cut ``lift`` > 0 below its bar's face gets the bar's
+    :func:`keeled` web down to the cut: it prints lying on it, not over support."""
     lower, upper = joints[i], joints[(i - 1) % 6]
     body = csg.Union(tuple(hex_node(p0, p1, radius, down) for p0, p1 in bars))
     caps = [(p0, p1, radius, -1) for p0, p1 in bars]
+    keel_mm = float(lift) if keel and extra is None and lift is not None and lift > 0 else 0.0
+    if keel_mm:
+        body, more = keeled(body, bars, radius, down, keel_mm + KEEL_PAST_MM)
+        caps += more
     if extra is not None:
         body = csg.Union((body, csg.Mesh(extra)))
         caps += list(extra_capsules)
@@ -216,7 +242,7 @@ def link_part(i: int, bars: np.ndarray, radius: float, down: np.ndarray,
                      j.at(max(s1, 0.0 if not up else j.length)), reach, j.index))
     return Part(f"link_{i}", i, solid, np.array([[c[0], c[1]] for c in caps]),
                 np.array([c[2] for c in caps]), np.array([c[3] for c in caps]), face, "link",
-                csg.Largest(body))
+                csg.Largest(body), keel_mm=keel_mm)
 
 
 def _one_piece(body: m3d.Manifold, link: int) -> m3d.Manifold:

@@ -62,6 +62,8 @@ ENOUGH_SIZED = 3
 #: More candidates sized past :data:`ENOUGH_SIZED` while every one sized would print a link
 #: over supports by its own layouts (:func:`_lifted_by_plan`).
 FLAT_SEARCH = 2
+#: Rebuilds without the keels that failed the verification (:func:`_keels_in_the_way`).
+KEEL_ROUNDS = 2
 
 
 @dataclass(frozen=True)
@@ -202,11 +204,12 @@ def _lifted_by_plan(real: Realization, plan: sizing.Plan, opts: Options) -> bool
 END_INSET = 1e-4
 
 
-def _fit_and_build(real: Realization, ee: object | None, plan: sizing.Plan, opts: Options
+def _fit_and_build(real: Realization, ee: object | None, plan: sizing.Plan, opts: Options,
+                   no_keel: frozenset = frozenset()
                    ) -> tuple[Assembly, sizing.Plan, str | None]:
     """The assembly of ``plan`` and how P became part of link 3 (:mod:`endlink`'s method;
     None without an end-effector); with an automatic size it shrinks while a built link does
-    not fit the bed in its print orientation."""
+    not fit the bed in its print orientation. The links of ``no_keel`` get no keel."""
     end_bars, el = None, None
     if ee is not None:
         from paraloop_core.fabrication import endlink
@@ -225,7 +228,7 @@ def _fit_and_build(real: Realization, ee: object | None, plan: sizing.Plan, opts
             solid = endlink.solid_manifold(el, plan.scale)
             extras = {3: (solid, parts.principal_capsules(solid))}
         asm = assembly.assemble(plan, real.points, real.joint_factors, opts.printer,
-                                plan.kind, end_bars=end_bars, extras=extras)
+                                plan.kind, end_bars=end_bars, extras=extras, no_keel=no_keel)
         ext = np.array([layout.laid_extent(p.manifold.to_mesh().vert_properties[:, :3],
                                            p.down) for p in asm.links])
         grow = float(bed.laid_fit_factor(ext, opts.printer).min())  # on their print flats
@@ -281,9 +284,25 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
         raise error
     cand, real, ee, plan, asm, ee_method, b, warnings = max(
         built, key=lambda x: _built_score(x, opts.ground))
-    if on_parts is not None:
+    keeled = bool(_keeled(asm))
+    if on_parts is not None and not keeled:  # else the parts are final once verified
         on_parts(asm)
     ver = check.verify(asm, opts.samples, progress=stage(progress, 0.45, 0.95))
+    for _ in range(KEEL_ROUNDS):
+        blocked = _keels_in_the_way(asm, ver)
+        if not blocked:
+            break
+        # a keel that comes closer to another link than the gap the sizing keeps: that link
+        # is built again without it (its bar then prints over support), the rest as before
+        tried.append(f"{cand.label}: the keel of link{'s' * (len(blocked) > 1)} "
+                     f"{', '.join(map(str, blocked))} comes too close to another link")
+        asm, plan, ee_method = _fit_and_build(real, ee, plan, opts, asm.no_keel | blocked)
+        b, warnings = None, []
+        if opts.ground:
+            asm, b, warnings = stand.ground(asm, opts)
+        ver = check.verify(asm, opts.samples, progress=stage(progress, 0.45, 0.95))
+    if on_parts is not None and keeled:
+        on_parts(asm)
     lifted = _lifted(asm)
     if lifted:
         warnings.append(f"link{'s' if len(lifted) > 1 else ''} "
@@ -296,7 +315,8 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
         "sizing": sizing.to_dict(plan, opts.printer, rows.bounds_of(real)),
         "joints": [joints.to_dict(j) for j in asm.joints],
         "verification": ver, "warnings": warnings + _level_warnings(plan),
-        "print_flat_slack_mm": asm.slack.tolist()}
+        "print_flat_slack_mm": asm.slack.tolist(),
+        "keels_mm": [p.keel_mm for p in asm.links]}
     # how the loop is held where no base stands on its own (None: it stands)
     if b is not None:
         report["base"] = base.to_dict(b, opts.printer.bed_mm)
@@ -342,9 +362,23 @@ def _built_score(x: tuple, ground: bool) -> tuple:
 
 
 def _lifted(asm: Assembly) -> list[int]:
-    """The links that cannot lie on their bar's face: printed on their bosses' cut faces,
-    the bar over supports (:func:`flat.lift`)."""
-    return [i for i in range(6) if not flat.lies_flat(asm.slack[i])]
+    """The links that cannot lie on their bar's face and have no keel: printed on their
+    bosses' cut faces, the bar over supports (:func:`flat.lift`)."""
+    return [i for i in range(6) if not flat.lies_flat(asm.slack[i]) and not asm.links[i].keel_mm]
+
+
+def _keeled(asm: Assembly) -> list[int]:
+    """The links lying on a keel (:func:`parts.keeled`)."""
+    return [i for i in range(6) if asm.links[i].keel_mm]
+
+
+def _keels_in_the_way(asm: Assembly, ver: dict) -> frozenset:
+    """The keeled links of the pairs whose verification ``ver`` fails: a collision, no
+    positive gap, or less than the sizing's gap between links without a joint."""
+    failed = [p["links"] for p in ver["pairs"]
+              if p["colliding_samples"] or p["continuous_min_gap_mm"] <= 0
+              or p["continuous_min_gap_mm"] < p["required_gap_mm"] - 1e-9]
+    return frozenset(i for pair in failed for i in pair if asm.links[i].keel_mm)
 
 
 def _capless(asm: Assembly) -> bool:
