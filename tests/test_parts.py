@@ -295,7 +295,7 @@ def test_a_lifted_link_lies_on_its_keel(lift):
 
     def build(keel: bool) -> parts.Part:
         return parts.link_part(i, bar, r, p.down, asm.joints, asm.printer.clearance_mm,
-                               lift=lift, keel=keel)
+                               lift=lift, keel_ok=keel)
 
     keeled, plain = build(True), build(False)
     assert keeled.keel_mm == lift and plain.keel_mm == 0.0

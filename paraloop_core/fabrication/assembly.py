@@ -15,7 +15,7 @@ import numpy as np
 
 from paraloop_core.algebra import dq
 from paraloop_core.errors import FabricationError
-from paraloop_core.fabrication import csg, flat, layout, parts, sizing
+from paraloop_core.fabrication import csg, flat, keel, layout, parts, sizing
 from paraloop_core.fabrication.joints import Joint
 from paraloop_core.fabrication.parts import Part
 from paraloop_core.fabrication.profiles import Printer
@@ -100,18 +100,24 @@ def link_bars(points_mm: np.ndarray, end_bars_mm: np.ndarray | None = None) -> l
     return bars
 
 
-def _link(plan: sizing.Plan, i: int, bars: np.ndarray, layouts: tuple[Joint, ...],
-          printer: Printer, extras: dict, down: np.ndarray | None = None, keel: bool = True
-          ) -> tuple[Part, float]:
-    """Link ``i`` and its print-flat slack: on ``down`` if given, else the flat
-    :func:`layout.choose_down` picks; ``keel``: a keel where it is lifted
-    (:func:`parts.link_part`)."""
+def _link(plan: sizing.Plan, i: int, all_bars: tuple[np.ndarray, ...],
+          layouts: tuple[Joint, ...], printer: Printer, extras: dict,
+          down: np.ndarray | None = None, keel_ok: bool = True) -> tuple[Part, float]:
+    """Link ``i`` (of the links' bars ``all_bars``) and its print-flat slack: on ``down`` if
+    given, else the flat :func:`layout.choose_down` picks; ``keel_ok``: a keel where it is
+    lifted and clears its neighbours (:func:`parts.link_part`)."""
+    bars = all_bars[i]
+    neighbours = tuple(
+        keel.Neighbour(layouts[j].origin, layouts[j].w, nb, float(plan.radii[n]))
+        for j, n, nb in ((i, (i + 1) % 6, all_bars[(i + 1) % 6][0]),
+                         ((i - 1) % 6, (i - 1) % 6, all_bars[(i - 1) % 6][-1])))
     r = float(plan.radii[i])
     extra, caps = extras.get(i, (None, []))
     c = printer.clearance_mm
 
     def make(d: np.ndarray, lift: float | None, n: int = parts.SEGMENTS) -> Part:
-        return parts.link_part(i, bars, r, d, layouts, c, extra, caps, lift, n, keel)
+        return parts.link_part(i, bars, r, d, layouts, c, extra, caps, lift, n, keel_ok,
+                               neighbours)
 
     sides = [(layouts[i], False), (layouts[(i - 1) % 6], True)]
     main = (bars[0][0], bars[-1][1])
@@ -158,8 +164,8 @@ def build_links(plan: sizing.Plan, bars: list[np.ndarray], printer: Printer,
     """The six link parts of ``plan`` (their ``bars`` in mm, :func:`link_bars`) and their
     print-flat slack (mm); ``extras``: per link a solid joined to it (mm) with its capsules
     (P, a carved body); such links are not cut flat. The links of ``no_keel`` get no keel."""
-    built = [_link(plan, i, bars[i], plan.layouts, printer, extras, keel=i not in no_keel)
-             for i in range(6)]
+    built = [_link(plan, i, tuple(bars), plan.layouts, printer, extras,
+                   keel_ok=i not in no_keel) for i in range(6)]
     return tuple(p for p, _ in built), np.array([s for _, s in built])
 
 
@@ -197,7 +203,7 @@ def relay(asm: Assembly, j: int, joint: Joint) -> Assembly:
         sides = [(layouts[i], False), (layouts[(i - 1) % 6], True)]
         down = keep if flat.lies_flat(flat.wall_slack(keep, level, sides,
                                                        asm.printer.wall_mm)) else None
-        new_parts[i], slack[i] = _link(asm.plan, i, asm.bars[i], layouts, asm.printer,
+        new_parts[i], slack[i] = _link(asm.plan, i, asm.bars, layouts, asm.printer,
                                        asm.extras, down, i not in asm.no_keel)
         parts.check_solid(new_parts[i].manifold, new_parts[i].name)
     others = [p for p in asm.parts[6:] if not (p.role in ("pin", "cap") and p.joint[0] == j)]

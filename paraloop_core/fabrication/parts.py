@@ -30,7 +30,7 @@ import numpy as np
 import trimesh
 
 from paraloop_core.errors import FabricationError
-from paraloop_core.fabrication import csg, profiles
+from paraloop_core.fabrication import csg, keel, profiles
 from paraloop_core.fabrication.joints import GLUED_CAP_SLACK_MM, SEAT_MM, Joint, outward
 from paraloop_core.fabrication.voxelspace import point_segment_distance
 
@@ -40,8 +40,6 @@ SEGMENTS = 48
 EPS_MM = 0.05
 #: Thinnest printed wall anywhere (mm): sheets of an open end-effector are this thick.
 MIN_WALL_MM = 0.8
-#: How far (mm) a lifted link's keel reaches past its print flat (the cut trims it there).
-KEEL_PAST_MM = 0.5
 
 
 @dataclass(frozen=True)
@@ -165,27 +163,40 @@ def fillet(j: Joint, upper: bool, bar: tuple[np.ndarray, np.ndarray], radius: fl
     return csg.Hull((boss(j, upper, n), stub))
 
 
-def keeled(body: csg.Node, bars: np.ndarray, radius: float, down: np.ndarray, depth: float
-           ) -> tuple[csg.Node, list[tuple]]:
-    """``body`` with each bar ``(p0, p1)`` swept ``depth`` mm along ``down`` (its flat face's
-    normal, perpendicular to the bar): the hull of the hexagonal bar and its copy moved down,
-    whose bottom face the print flat then cuts. A bosses' cut face far below the bar (a bore
+def keeled(body: csg.Node, bars: np.ndarray, radius: float, down: np.ndarray, bottom: float,
+           neighbours: tuple[keel.Neighbour, ...] = ()) -> tuple[csg.Node, list[tuple]] | None:
+    """``body`` with its bar ``(p0, p1)`` swept along ``down`` (its flat face's normal,
+    perpendicular to the bar) past ``bottom`` mm below its axis (where the print flat cuts
+    it at its full width, :mod:`keel`), along the stretch :func:`keel.span` keeps clear of the
+    ``neighbours``: the hull of the hexagonal bar and its copy moved down, its shortened ends
+    sloping up at :data:`keel.END_SLOPE_DEG`. A bosses' cut face far below the bar (a bore
     that needs its wall) is so joined to the bar by a web on the bed instead of a bar printed
-    over support. And its capsules: about the bar moved ``depth / 2`` down, of radius
-    ``radius + depth / 2`` (every swept point is within ``depth / 2`` of its bar point moved
-    so)."""
+    over support. And its capsules (:func:`keel.capsule_radius`). None where no keel fits."""
     d = np.asarray(down, float)
-    webs = tuple(csg.Hull((hex_node(p0, p1, radius, d),
-                           hex_node(p0 + depth * d, p1 + depth * d, radius, d)))
-                 for p0, p1 in bars)
-    caps = [(p0 + depth / 2 * d, p1 + depth / 2 * d, radius + depth / 2, -1) for p0, p1 in bars]
+    sweep = bottom + keel.PAST_MM  # the copy's side corners below the cut: full width there
+    run = sweep / np.tan(np.radians(keel.END_SLOPE_DEG))  # the bottom faces' ends: that slope
+    webs, caps = [], []
+    for p0, p1 in bars:
+        length = float(np.linalg.norm(p1 - p0))
+        u = (p1 - p0) / length
+        stretch = keel.span((p0, p1), radius, d, bottom, neighbours)
+        if stretch is None:
+            return None
+        x0, x1 = stretch
+        top = (p0 + max(x0 - run, 0.0) * u, p0 + min(x1 + run, length) * u)
+        webs.append(csg.Hull((hex_node(*top, radius, d),
+                              hex_node(p0 + x0 * u + sweep * d, p0 + x1 * u + sweep * d,
+                                       radius, d))))
+        caps.append((top[0] + bottom / 2 * d, top[1] + bottom / 2 * d,
+                     keel.capsule_radius(radius, bottom), -1))
     return csg.Union((body, *webs)), caps
 
 
 def link_part(i: int, bars: np.ndarray, radius: float, down: np.ndarray,
               joints: tuple[Joint, ...], printer_c: float, extra: m3d.Manifold | None = None,
               extra_capsules: list[tuple] = (), lift: float | None = 0.0,
-              segments: int = SEGMENTS, keel: bool = True) -> Part:
+              segments: int = SEGMENTS, keel_ok: bool = True,
+              neighbours: tuple[keel.Neighbour, ...] = ()) -> Part:
     """Link ``i``: its ``bars`` ``(n, 2, 3)`` (mm, from ``S_i`` to ``E_i``; with an
     end-effector ``S_3 L``, ``R E_3``) of hex corner ``radius`` with flat face ``down``, its
     joints ``i - 1`` (upper side) and ``i`` (lower side), ``extra`` solids joined to it (P,
@@ -193,14 +204,19 @@ def link_part(i: int, bars: np.ndarray, radius: float, down: np.ndarray,
     down face (> 0 where a bore needs the cut deeper: the bar then prints over support; < 0
     into the bar; None: not cut, nor where it would cut an ``extra``); ``segments`` of round
     solids (fewer for trial parts). Raises :class:`FabricationError` when the cuts leave it
-    in pieces. With ``keel``, a link cut ``lift`` > 0 below its bar's face gets the bar's
-    :func:`keeled` web down to the cut: it prints lying on it, not over support."""
+    in pieces. With ``keel_ok``, a link cut ``lift`` > 0 below its bar's face gets the bar's
+    :func:`keeled` web down to the cut, where it clears the links on its joints
+    (``neighbours``, :mod:`keel`): it prints lying on it, not over support."""
     lower, upper = joints[i], joints[(i - 1) % 6]
     body = csg.Union(tuple(hex_node(p0, p1, radius, down) for p0, p1 in bars))
     caps = [(p0, p1, radius, -1) for p0, p1 in bars]
-    keel_mm = float(lift) if keel and extra is None and lift is not None and lift > 0 else 0.0
-    if keel_mm:
-        body, more = keeled(body, bars, radius, down, keel_mm + KEEL_PAST_MM)
+    keel_mm = float(lift) if keel_ok and extra is None and lift is not None and lift > 0 else 0.0
+    made = keeled(body, bars, radius, down, radius * np.sqrt(3.0) / 2 + keel_mm, neighbours) \
+        if keel_mm else None
+    if made is None:
+        keel_mm = 0.0
+    else:
+        body, more = made
         caps += more
     if extra is not None:
         body = csg.Union((body, csg.Mesh(extra)))
