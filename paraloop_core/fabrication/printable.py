@@ -373,12 +373,15 @@ def _keeled(asm: Assembly) -> list[int]:
 
 
 def _keels_in_the_way(asm: Assembly, ver: dict) -> frozenset:
-    """The keeled links of the pairs whose verification ``ver`` fails: a collision, no
-    positive gap, or less than the sizing's gap between links without a joint."""
+    """For each pair whose verification ``ver`` fails (a collision, no positive gap, or less
+    than the sizing's gap between links without a joint), its deeper keel (the first link's
+    of equals; none if neither link has one): a second round takes the other where the pair
+    still fails."""
     failed = [p["links"] for p in ver["pairs"]
               if p["colliding_samples"] or p["continuous_min_gap_mm"] <= 0
               or p["continuous_min_gap_mm"] < p["required_gap_mm"] - 1e-9]
-    return frozenset(i for pair in failed for i in pair if asm.links[i].keel_mm)
+    deeper = (max(pair, key=lambda i: (asm.links[i].keel_mm, -i)) for pair in failed)
+    return frozenset(i for i in deeper if asm.links[i].keel_mm)
 
 
 def _capless(asm: Assembly) -> bool:
