@@ -38,6 +38,7 @@ from paraloop_core.fabrication import (
     drive_mass,
     flat,
     joints,
+    keel,
     layout,
     parts,
     profiles,
@@ -62,7 +63,7 @@ ENOUGH_SIZED = 3
 #: More candidates sized past :data:`ENOUGH_SIZED` while every one sized would print a link
 #: over supports by its own layouts (:func:`_lifted_by_plan`).
 FLAT_SEARCH = 2
-#: Rebuilds without the keels that failed the verification (:func:`_keels_in_the_way`).
+#: Rebuilds without the keels that failed the verification (:func:`keel.in_the_way`).
 KEEL_ROUNDS = 2
 
 
@@ -267,10 +268,16 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
             if progress is not None:
                 progress(0.4, f"grounding {cand.label}: rod and base plate")
             asm, b, warnings = stand.ground(asm, opts)
-        built.append((cand, real, ee, plan, asm, ee_method, b, warnings))
-        lifted, capless = _lifted(asm), _capless(asm)
-        if (b is not None and b.stands or not opts.ground) and not lifted and not capless:
+        x = (cand, real, ee, plan, asm, ee_method, b, warnings, None)
+        if _keeled(asm) and _accepted(asm, b, opts):
+            # its keels verified before it is taken: one taken off leaves its link over
+            # supports, and the next candidate may lie flat
+            x = _settled(x, opts, progress, tried)
+            asm, b = x[4], x[6]
+        built.append(x)
+        if _accepted(asm, b, opts):
             break
+        lifted, capless = _lifted(asm), _capless(asm)
         if b is None and opts.ground:
             tried.append(f"{cand.label}: no grounding rod clears its moving links")
         elif b is not None and not b.stands:
@@ -282,26 +289,15 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
                          f"{', '.join(map(str, lifted))} would print over supports")
     if not built:
         raise error
-    cand, real, ee, plan, asm, ee_method, b, warnings = max(
-        built, key=lambda x: _built_score(x, opts.ground))
-    keeled = bool(_keeled(asm))
-    if on_parts is not None and not keeled:  # else the parts are final once verified
-        on_parts(asm)
-    ver = check.verify(asm, opts.samples, progress=stage(progress, 0.45, 0.95))
-    for _ in range(KEEL_ROUNDS):
-        blocked = _keels_in_the_way(asm, ver)
-        if not blocked:
-            break
-        # a keel that comes closer to another link than the gap the sizing keeps: that link
-        # is built again without it (its bar then prints over support), the rest as before
-        tried.append(f"{cand.label}: the keel of link{'s' * (len(blocked) > 1)} "
-                     f"{', '.join(map(str, blocked))} comes too close to another link")
-        asm, plan, ee_method = _fit_and_build(real, ee, plan, opts, asm.no_keel | blocked)
-        b, warnings = None, []
-        if opts.ground:
-            asm, b, warnings = stand.ground(asm, opts)
-        ver = check.verify(asm, opts.samples, progress=stage(progress, 0.45, 0.95))
-    if on_parts is not None and keeled:
+    x = max(built, key=lambda x: _built_score(x, opts.ground))
+    # parts without keels are final: the STEP solids start before their verification
+    early = on_parts is not None and x[8] is None and not _keeled(x[4])
+    if early:
+        on_parts(x[4])
+    if x[8] is None:
+        x = _settled(x, opts, progress, tried)
+    cand, real, ee, plan, asm, ee_method, b, warnings, ver = x
+    if on_parts is not None and not early:
         on_parts(asm)
     lifted = _lifted(asm)
     if lifted:
@@ -350,6 +346,34 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
     return Printed(asm, real, ee, cand.loop, cand.label, b, report)
 
 
+def _accepted(asm: Assembly, b: base.Base | None, opts: Options) -> bool:
+    """Whether a built candidate is taken at once: standing on its base (or no grounding
+    asked for), its rod capped, no link over supports."""
+    return bool((b is not None and b.stands or not opts.ground) and not _lifted(asm)
+                and not _capless(asm))
+
+
+def _settled(x: tuple, opts: Options, progress: Progress | None, tried: list[str]) -> tuple:
+    """A built candidate ``x`` of :func:`make` (its last item the verification, None) with its
+    verification, after taking off the keels it fails (:func:`keel.in_the_way`; the
+    candidate rebuilt without them, grounded and verified again; at most
+    :data:`KEEL_ROUNDS` times): those links then print over supports."""
+    cand, real, ee, plan, asm, ee_method, b, warnings, _ = x
+    ver = check.verify(asm, opts.samples, progress=stage(progress, 0.45, 0.95))
+    for _ in range(KEEL_ROUNDS):
+        blocked = keel.in_the_way([p.keel_mm for p in asm.links], ver["pairs"])
+        if not blocked:
+            break
+        tried.append(f"{cand.label}: the keel of link{'s' * (len(blocked) > 1)} "
+                     f"{', '.join(map(str, blocked))} comes too close to another link")
+        asm, plan, ee_method = _fit_and_build(real, ee, plan, opts, asm.no_keel | blocked)
+        b, warnings = None, []
+        if opts.ground:
+            asm, b, warnings = stand.ground(asm, opts)
+        ver = check.verify(asm, opts.samples, progress=stage(progress, 0.45, 0.95))
+    return cand, real, ee, plan, asm, ee_method, b, warnings, ver
+
+
 def _built_score(x: tuple, ground: bool) -> tuple:
     """Rank of a built candidate of :func:`make` (larger is better; ``max`` keeps the earlier,
     better sized, of equals): on a base (when grounding is asked for), then the fewest
@@ -370,18 +394,6 @@ def _lifted(asm: Assembly) -> list[int]:
 def _keeled(asm: Assembly) -> list[int]:
     """The links lying on a keel (:func:`parts.keeled`)."""
     return [i for i in range(6) if asm.links[i].keel_mm]
-
-
-def _keels_in_the_way(asm: Assembly, ver: dict) -> frozenset:
-    """For each pair whose verification ``ver`` fails (a collision, no positive gap, or less
-    than the sizing's gap between links without a joint), its deeper keel (the first link's
-    of equals; none if neither link has one): a second round takes the other where the pair
-    still fails."""
-    failed = [p["links"] for p in ver["pairs"]
-              if p["colliding_samples"] or p["continuous_min_gap_mm"] <= 0
-              or p["continuous_min_gap_mm"] < p["required_gap_mm"] - 1e-9]
-    deeper = (max(pair, key=lambda i: (asm.links[i].keel_mm, -i)) for pair in failed)
-    return frozenset(i for i in deeper if asm.links[i].keel_mm)
 
 
 def _capless(asm: Assembly) -> bool:
