@@ -287,7 +287,7 @@ def test_a_keel_that_fails_the_verification_is_taken_off(monkeypatch):
     """Every link lifted (a flat 1 mm under its bar's face): each gets a keel; a pair the
     verification fails loses its deeper keel (of equals the first link's; rebuilt, grounded
     and verified again; the others keep theirs), the report says so, and the STEP helper
-    gets only the final parts."""
+    gets the final parts last."""
     monkeypatch.setattr(flat, "lift", lambda slack: 1.0)
     monkeypatch.setattr(flat, "lies_flat", lambda slack: False)
     real_verify, calls = printable.check.verify, []
@@ -307,7 +307,9 @@ def test_a_keel_that_fails_the_verification_is_taken_off(monkeypatch):
     assert out.report["verification"]["pairs"][2]["links"] == [0, 3]
     assert all(k == 1.0 for k in calls[0]) and len(calls) == 2
     assert [k for k in calls[1]] == out.report["keels_mm"] == [0.0, 1.0, 1.0, 1.0, 1.0, 1.0]
-    assert out.assembly.no_keel == {0} and handed == [out.assembly]
+    # the STEP helper got the parts before their verification, then the final ones
+    assert out.assembly.no_keel == {0} and handed[-1] is out.assembly and len(handed) == 2
+    assert [p.keel_mm for p in handed[0].links] == [1.0] * 6
     assert any("the keel of link 0 comes too close" in t for t in out.report["choice"]["tried"])
     assert any("link 0 cannot lie on the bar's face" in w for w in out.report["warnings"])
 

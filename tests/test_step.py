@@ -233,3 +233,23 @@ def test_a_helper_that_dies_leaves_the_solids_to_this_process(written):
         out, kinds = job.result(asm, colors, export.STEEL)
     assert kinds == {e["name"]: e["step"] for e in report["parts"]}
     assert _same_geometry(dict(out)["parts.step"], files["parts.step"])
+
+
+def test_parts_handed_again_are_the_ones_written(written):
+    """The export hands the parts again where a keel came off after its verification: the
+    first helper is stopped and the files are the second parts' (made by a new helper)."""
+    from dataclasses import replace
+
+    from paraloop_core.fabrication import step_job
+
+    asm, files, report, _ = written
+    colors = export.step_colors(asm)
+    with step_job.StepJob(spawn=True) as job:
+        first = job._proc
+        job.submit(replace(asm, parts=asm.parts[:2], hardware=()), colors, export.STEEL)
+        job.submit(asm, colors, export.STEEL)
+        assert job._proc is not first and first.poll() is not None  # stopped
+        out, kinds = job.result(asm, colors, export.STEEL)
+        assert job._proc.returncode == 0  # made by the new helper
+    assert kinds == {e["name"]: e["step"] for e in report["parts"]}
+    assert _same_geometry(dict(out)["parts.step"], files["parts.step"])

@@ -243,8 +243,9 @@ def _fit_and_build(real: Realization, ee: object | None, plan: sizing.Plan, opts
 def make(candidates: Iterable[Candidate], opts: Options | None = None,
          drive: DriveSettings | None = None, progress: Progress | None = None,
          on_parts: Callable[[Assembly], None] | None = None) -> Printed:
-    """The printable loop (module docstring); ``on_parts(assembly)`` is called once the parts
-    are final, before their verification (the export starts its STEP solids then)."""
+    """The printable loop (module docstring); ``on_parts(assembly)`` is called with the parts
+    before their verification (the export starts its STEP solids then), and again with the
+    final parts where a keel the verification failed was taken off."""
     opts = opts or Options()
     ranked, tried = choose(candidates, opts, stage(progress, 0.0, 0.25))
     if progress is not None:
@@ -252,7 +253,13 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
     # the best candidate that builds and stands on its base, its rod capped and its links
     # all flat on the bed; else the built one on a base with the fewest defects, standing
     # first (_built_score)
-    built, error = [], None
+    built, error, handed = [], None, []
+
+    def hand(asm: Assembly) -> None:  # the parts to the STEP helper, again where they changed
+        if on_parts is not None and (not handed or handed[-1] is not asm):
+            handed.append(asm)
+            on_parts(asm)
+
     for cand, real, ee, plan in ranked:
         try:
             asm, plan, ee_method = _fit_and_build(real, ee, plan, opts)
@@ -272,6 +279,7 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
         if _keeled(asm) and _accepted(asm, b, opts):
             # its keels verified before it is taken: one taken off leaves its link over
             # supports, and the next candidate may lie flat
+            hand(asm)
             x = _settled(x, opts, progress, tried)
             asm, b = x[4], x[6]
         built.append(x)
@@ -290,15 +298,11 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
     if not built:
         raise error
     x = max(built, key=lambda x: _built_score(x, opts.ground))
-    # parts without keels are final: the STEP solids start before their verification
-    early = on_parts is not None and x[8] is None and not _keeled(x[4])
-    if early:
-        on_parts(x[4])
+    hand(x[4])  # the STEP solids start before the verification (again if a keel comes off)
     if x[8] is None:
         x = _settled(x, opts, progress, tried)
     cand, real, ee, plan, asm, ee_method, b, warnings, ver = x
-    if on_parts is not None and not early:
-        on_parts(asm)
+    hand(asm)
     lifted = _lifted(asm)
     if lifted:
         warnings.append(f"link{'s' if len(lifted) > 1 else ''} "

@@ -114,16 +114,20 @@ class StepJob:
         self._out: list[bytes] = []
         self._reader: threading.Thread | None = None
         if spawn if spawn is not None else cores() >= 2:
-            root = str(Path(__file__).resolve().parents[2])  # where paraloop_core lives
-            env = {**os.environ, "PYTHONPATH": os.pathsep.join(
-                [root, *filter(None, [os.environ.get("PYTHONPATH")])])}
-            try:
-                self._proc = subprocess.Popen(
-                    [sys.executable, "-m", __name__], stdin=subprocess.PIPE,
-                    stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, env=env,
-                    start_new_session=True)
-            except OSError:  # no helper: made here
-                self._proc = None
+            self._start()
+
+    def _start(self) -> None:
+        root = str(Path(__file__).resolve().parents[2])  # where paraloop_core lives
+        env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+            [root, *filter(None, [os.environ.get("PYTHONPATH")])])}
+        try:
+            self._proc = subprocess.Popen(
+                [sys.executable, "-m", __name__], stdin=subprocess.PIPE,
+                stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, env=env,
+                start_new_session=True)
+        except OSError:  # no helper: made here
+            self._proc = None
+        self._out = []
 
     def __enter__(self) -> StepJob:
         return self
@@ -132,8 +136,12 @@ class StepJob:
         self.close()
 
     def submit(self, asm, colors: dict[str, np.ndarray], steel: np.ndarray) -> None:
-        """Hand the helper the parts and hardware of ``asm`` (colours by part name)."""
-        if self._proc is None or self._sent:
+        """Hand the helper the parts and hardware of ``asm`` (colours by part name). Parts
+        handed again (they changed) go to a new helper: the first one is stopped."""
+        if self._sent:
+            self.close()
+            self._start()
+        if self._proc is None:
             return
         job = SimpleNamespace(parts=list(asm.parts), hardware=list(asm.hardware))
         try:
