@@ -10,7 +10,16 @@ import numpy as np
 import pytest
 
 from paraloop_core.errors import FabricationError
-from paraloop_core.fabrication import check, flat, layout, parts, profiles, sizing, stiffness
+from paraloop_core.fabrication import (
+    check,
+    flat,
+    keel,
+    layout,
+    parts,
+    profiles,
+    sizing,
+    stiffness,
+)
 from paraloop_core.fabrication.assembly import Assembly
 
 ASSEMBLIES = ["m3", "printed-pin", "grounded"]
@@ -286,32 +295,34 @@ def test_body_capsules_hold_a_body():
 def test_a_lifted_link_lies_on_its_keel(lift):
     """A link cut ``lift`` mm below its bar's face (a bore needs the room) gets a keel down to
     that cut: its material stays in its capsules, the cut is its lowest face, it lies on a
-    strip about as wide as the bar's face along the bar, and it needs far less support than
-    the same link without the keel (whose bar prints over support)."""
+    strip about twice (wide keel) or once (narrow) as wide as the bar's face along the bar,
+    and it needs far less support than the same link without the keel (whose bar prints
+    over support)."""
     asm = F.assembly("m3")
     i = 0
     p, bar = asm.links[i], asm.bars[i]
     r = float(asm.plan.radii[i])
-
-    def build(keel: bool) -> parts.Part:
-        return parts.link_part(i, bar, r, p.down, asm.joints, asm.printer.clearance_mm,
-                               lift=lift, keel_ok=keel)
-
-    keeled, plain = build(True), build(False)
-    assert keeled.keel_mm == lift and plain.keel_mm == 0.0
-    tm = F.mesh_of(keeled.manifold)
-    v = tm.vertices
-    out = np.min([F.point_segment(v, c[0], c[1]) - rad
-                  for c, rad in zip(keeled.capsules, keeled.radii, strict=True)], axis=0)
-    assert out.max() <= F.float32_slack(v)
     level = float(np.max(bar.reshape(-1, 3) @ p.down)) + r * np.sqrt(3) / 2 + lift
-    assert (v @ p.down).max() == pytest.approx(level, abs=F.float32_slack(v))
     rot = layout.to_bed(p.down)
     length = float(np.linalg.norm(bar[0][1] - bar[0][0]))
-    assert layout.contact_area(tm, rot) >= 0.6 * r * length  # the keel's face, less the zones
-    assert layout.contact_area(F.mesh_of(plain.manifold), rot) < 0.2 * r * length
-    with_keel = layout.support(v, tm.faces, p.down)
-    without = layout.support(F.mesh_of(plain.manifold).vertices,
-                             F.mesh_of(plain.manifold).faces, p.down)
-    # (what support is left: the round bosses' undersides beside the keel)
-    assert with_keel[0] <= 0.1 * with_keel[1] and without[0] >= 0.2 * without[1]
+    built, contact, share = {}, {}, {}
+    for k in (keel.WIDE, keel.NARROW, keel.NONE):
+        part = parts.link_part(i, bar, r, p.down, asm.joints, asm.printer.clearance_mm,
+                               lift=lift, keel_level=k)
+        tm = F.mesh_of(part.manifold)
+        v = tm.vertices
+        out = np.min([F.point_segment(v, c[0], c[1]) - rad
+                      for c, rad in zip(part.capsules, part.radii, strict=True)], axis=0)
+        assert out.max() <= F.float32_slack(v), k
+        if k != keel.NONE:  # (the plain link's bosses need not reach this test's cut)
+            assert (v @ p.down).max() == pytest.approx(level, abs=F.float32_slack(v))
+        built[k], contact[k] = part, layout.contact_area(tm, rot)
+        support, downward = layout.support(v, tm.faces, p.down)
+        share[k] = support / downward
+    assert built[keel.WIDE].keel_mm == built[keel.NARROW].keel_mm == lift
+    assert built[keel.NONE].keel_mm == 0.0
+    # the keel's face, less the joint zones; (what support is left: the round bosses'
+    # undersides beside the keel)
+    assert contact[keel.WIDE] >= 1.4 * r * length and contact[keel.NARROW] >= 0.6 * r * length
+    assert contact[keel.NONE] < 0.2 * r * length
+    assert max(share[keel.WIDE], share[keel.NARROW]) <= 0.1 and share[keel.NONE] >= 0.2

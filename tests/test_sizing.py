@@ -283,19 +283,19 @@ def test_the_sizing_predicts_the_links_a_build_lifts():
     assert printable._keeled(asm) == off_flat and not printable._lifted(asm)
 
 
-def test_a_keel_that_fails_the_verification_is_taken_off(monkeypatch):
-    """Every link lifted (a flat 1 mm under its bar's face): each gets a keel; a pair the
-    verification fails loses its deeper keel (of equals the first link's; rebuilt, grounded
-    and verified again; the others keep theirs), the report says so, and the STEP helper
-    gets the final parts last."""
+def test_a_keel_that_fails_the_verification_is_narrowed_then_taken_off(monkeypatch):
+    """Every link lifted (a flat 1 mm under its bar's face): each gets a wide keel; a pair
+    the verification fails loses a level of its deeper keel (of equals the first link's:
+    narrow, then none; rebuilt, grounded and verified again; the others keep theirs), the
+    report says so, and the STEP helper gets the final parts last."""
     monkeypatch.setattr(flat, "lift", lambda slack: 1.0)
     monkeypatch.setattr(flat, "lies_flat", lambda slack: False)
     real_verify, calls = printable.check.verify, []
 
     def verify(asm, *args, **kwargs):
         ver = real_verify(asm, *args, **kwargs)
-        calls.append([p.keel_mm for p in asm.links])
-        if len(calls) == 1:  # the first verification fails links 0 and 3
+        calls.append(asm)
+        if len(calls) <= 2:  # the first two verifications fail links 0 and 3
             ver["pairs"][2]["colliding_samples"] = 5
         return ver
 
@@ -305,12 +305,16 @@ def test_a_keel_that_fails_the_verification_is_taken_off(monkeypatch):
     out = printable.make([cand], printable.Options(size_mm=F.SIZE_MM, samples=F.SAMPLES),
                          on_parts=handed.append)
     assert out.report["verification"]["pairs"][2]["links"] == [0, 3]
-    assert all(k == 1.0 for k in calls[0]) and len(calls) == 2
-    assert [k for k in calls[1]] == out.report["keels_mm"] == [0.0, 1.0, 1.0, 1.0, 1.0, 1.0]
+    assert [a.keel_levels for a in calls] == [(2,) * 6, (1,) + (2,) * 5, (0,) + (2,) * 5]
+    narrow, wide = (F.mesh_of(calls[k].links[0].manifold) for k in (1, 0))
+    assert narrow.volume < wide.volume  # the narrow keel is less of the wide one
+    assert out.report["keels_mm"] == [0.0, 1.0, 1.0, 1.0, 1.0, 1.0]
     # the STEP helper got the parts before their verification, then the final ones
-    assert out.assembly.no_keel == {0} and handed[-1] is out.assembly and len(handed) == 2
-    assert [p.keel_mm for p in handed[0].links] == [1.0] * 6
-    assert any("the keel of link 0 comes too close" in t for t in out.report["choice"]["tried"])
+    assert handed[0] is calls[0] and handed[-1] is out.assembly is calls[-1]
+    tried = out.report["choice"]["tried"]
+    assert any("the keel of link 0 comes too close to another link: link 0 narrowed" in t
+               for t in tried)
+    assert any("link 0 without" in t for t in tried)
     assert any("link 0 cannot lie on the bar's face" in w for w in out.report["warnings"])
 
 

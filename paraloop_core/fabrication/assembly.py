@@ -68,9 +68,9 @@ class Assembly:
     #: each link's bars ``(n, 2, 3)`` (mm) and the solids joined to it (to rebuild a link)
     bars: tuple[np.ndarray, ...] = ()
     extras: dict = field(default_factory=dict)
-    #: the links built without a keel where lifted (:func:`parts.keeled`; the keel did not
-    #: clear the other links): their bars print over support
-    no_keel: frozenset = frozenset()
+    #: each link's keel level where it is lifted (:data:`keel.WIDE`, ``NARROW``, ``NONE``;
+    #: lower where a keel did not clear the other links; none: its bar prints over support)
+    keel_levels: tuple[int, ...] = (keel.WIDE,) * 6
 
     @property
     def links(self) -> tuple[Part, ...]:
@@ -102,10 +102,10 @@ def link_bars(points_mm: np.ndarray, end_bars_mm: np.ndarray | None = None) -> l
 
 def _link(plan: sizing.Plan, i: int, all_bars: tuple[np.ndarray, ...],
           layouts: tuple[Joint, ...], printer: Printer, extras: dict,
-          down: np.ndarray | None = None, keel_ok: bool = True) -> tuple[Part, float]:
+          down: np.ndarray | None = None, keel_level: int = keel.WIDE) -> tuple[Part, float]:
     """Link ``i`` (of the links' bars ``all_bars``) and its print-flat slack: on ``down`` if
-    given, else the flat :func:`layout.choose_down` picks; ``keel_ok``: a keel where it is
-    lifted and clears its neighbours (:func:`parts.link_part`)."""
+    given, else the flat :func:`layout.choose_down` picks; ``keel_level``: its keel where it
+    is lifted and clears its neighbours (:func:`parts.link_part`)."""
     bars = all_bars[i]
     neighbours = tuple(
         keel.Neighbour(layouts[j].origin, layouts[j].w, nb, float(plan.radii[n]))
@@ -116,7 +116,7 @@ def _link(plan: sizing.Plan, i: int, all_bars: tuple[np.ndarray, ...],
     c = printer.clearance_mm
 
     def make(d: np.ndarray, lift: float | None, n: int = parts.SEGMENTS) -> Part:
-        return parts.link_part(i, bars, r, d, layouts, c, extra, caps, lift, n, keel_ok,
+        return parts.link_part(i, bars, r, d, layouts, c, extra, caps, lift, n, keel_level,
                                neighbours)
 
     sides = [(layouts[i], False), (layouts[(i - 1) % 6], True)]
@@ -159,33 +159,34 @@ def _faces(solid: m3d.Manifold) -> np.ndarray:
 
 
 def build_links(plan: sizing.Plan, bars: list[np.ndarray], printer: Printer,
-                extras: dict, no_keel: frozenset = frozenset()
+                extras: dict, keel_levels: tuple[int, ...] = (keel.WIDE,) * 6
                 ) -> tuple[tuple[Part, ...], np.ndarray]:
     """The six link parts of ``plan`` (their ``bars`` in mm, :func:`link_bars`) and their
     print-flat slack (mm); ``extras``: per link a solid joined to it (mm) with its capsules
-    (P, a carved body); such links are not cut flat. The links of ``no_keel`` get no keel."""
+    (P, a carved body); such links are not cut flat; ``keel_levels`` each link's keel."""
     built = [_link(plan, i, tuple(bars), plan.layouts, printer, extras,
-                   keel_ok=i not in no_keel) for i in range(6)]
+                   keel_level=keel_levels[i]) for i in range(6)]
     return tuple(p for p, _ in built), np.array([s for _, s in built])
 
 
 def assemble(plan: sizing.Plan, points: np.ndarray, joint_factors: np.ndarray,
              printer: Printer, kind: str, *, end_bars: np.ndarray | None = None,
-             extras: dict | None = None, no_keel: frozenset = frozenset()) -> Assembly:
+             extras: dict | None = None, keel_levels: tuple[int, ...] = (keel.WIDE,) * 6
+             ) -> Assembly:
     """:func:`build_links` on the polyline ``points`` ``(12, 3)`` (design units; ``end_bars``
     link 3's bars with an end-effector, design units) plus the printed pieces and the
     hardware of the joints."""
     k = plan.scale
     bars = link_bars(np.asarray(points, float) * k,
                      None if end_bars is None else np.asarray(end_bars, float) * k)
-    links, slack = build_links(plan, bars, printer, extras or {}, no_keel)
+    links, slack = build_links(plan, bars, printer, extras or {}, keel_levels)
     for p in links:
         parts.check_solid(p.manifold, p.name)
     pieces = parts.piece_parts(plan.layouts)
     return Assembly((*links, *pieces), plan.scale, plan.layouts,
                     np.asarray(joint_factors, float), plan, printer, kind,
                     hardware_of(plan.layouts), slack, None, tuple(bars), dict(extras or {}),
-                    frozenset(no_keel))
+                    tuple(keel_levels))
 
 
 def relay(asm: Assembly, j: int, joint: Joint) -> Assembly:
@@ -204,7 +205,7 @@ def relay(asm: Assembly, j: int, joint: Joint) -> Assembly:
         down = keep if flat.lies_flat(flat.wall_slack(keep, level, sides,
                                                        asm.printer.wall_mm)) else None
         new_parts[i], slack[i] = _link(asm.plan, i, asm.bars, layouts, asm.printer,
-                                       asm.extras, down, i not in asm.no_keel)
+                                       asm.extras, down, asm.keel_levels[i])
         parts.check_solid(new_parts[i].manifold, new_parts[i].name)
     others = [p for p in asm.parts[6:] if not (p.role in ("pin", "cap") and p.joint[0] == j)]
     pieces = [p for p in parts.piece_parts((joint,))]

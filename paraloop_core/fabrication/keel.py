@@ -25,6 +25,10 @@ import numpy as np
 
 #: How far (mm) a keel's widest section reaches past its print flat (the cut trims it there).
 PAST_MM = 0.5
+#: Keel levels of a link (:func:`parts.keeled`): as wide as the bar at the cut (two corner
+#: radii), narrow (the hexagon's face, one corner radius: the copy's corners stop above the
+#: cut), none; a keel the verification fails goes one level down.
+WIDE, NARROW, NONE = 2, 1, 0
 #: Added to a keel's capsule radius (mm): its corners lie on the capsule (float rounding).
 CAPSULE_SLACK_MM = 1e-4
 #: Slope (degrees from the bed) of a shortened keel's ends: steeper than the 45 deg a printer

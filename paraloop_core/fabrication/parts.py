@@ -164,16 +164,19 @@ def fillet(j: Joint, upper: bool, bar: tuple[np.ndarray, np.ndarray], radius: fl
 
 
 def keeled(body: csg.Node, bars: np.ndarray, radius: float, down: np.ndarray, bottom: float,
-           neighbours: tuple[keel.Neighbour, ...] = ()) -> tuple[csg.Node, list[tuple]] | None:
+           neighbours: tuple[keel.Neighbour, ...] = (), wide: bool = True
+           ) -> tuple[csg.Node, list[tuple]] | None:
     """``body`` with its bar ``(p0, p1)`` swept along ``down`` (its flat face's normal,
     perpendicular to the bar) past ``bottom`` mm below its axis (where the print flat cuts
-    it at its full width, :mod:`keel`), along the stretch :func:`keel.span` keeps clear of the
+    it at its full width, :mod:`keel`; not ``wide``: its face's width, the copy's side
+    corners stopping above the cut), along the stretch :func:`keel.span` keeps clear of the
     ``neighbours``: the hull of the hexagonal bar and its copy moved down, its shortened ends
     sloping up at :data:`keel.END_SLOPE_DEG`. A bosses' cut face far below the bar (a bore
     that needs its wall) is so joined to the bar by a web on the bed instead of a bar printed
     over support. And its capsules (:func:`keel.capsule_radius`). None where no keel fits."""
     d = np.asarray(down, float)
-    sweep = bottom + keel.PAST_MM  # the copy's side corners below the cut: full width there
+    # wide: the copy's side corners below the cut (full width there); narrow: its bottom face
+    sweep = bottom + keel.PAST_MM - (0.0 if wide else radius * np.sqrt(3.0) / 2)
     run = sweep / np.tan(np.radians(keel.END_SLOPE_DEG))  # the bottom faces' ends: that slope
     webs, caps = [], []
     for p0, p1 in bars:
@@ -195,7 +198,7 @@ def keeled(body: csg.Node, bars: np.ndarray, radius: float, down: np.ndarray, bo
 def link_part(i: int, bars: np.ndarray, radius: float, down: np.ndarray,
               joints: tuple[Joint, ...], printer_c: float, extra: m3d.Manifold | None = None,
               extra_capsules: list[tuple] = (), lift: float | None = 0.0,
-              segments: int = SEGMENTS, keel_ok: bool = True,
+              segments: int = SEGMENTS, keel_level: int = keel.WIDE,
               neighbours: tuple[keel.Neighbour, ...] = ()) -> Part:
     """Link ``i``: its ``bars`` ``(n, 2, 3)`` (mm, from ``S_i`` to ``E_i``; with an
     end-effector ``S_3 L``, ``R E_3``) of hex corner ``radius`` with flat face ``down``, its
@@ -204,15 +207,17 @@ def link_part(i: int, bars: np.ndarray, radius: float, down: np.ndarray,
     down face (> 0 where a bore needs the cut deeper: the bar then prints over support; < 0
     into the bar; None: not cut, nor where it would cut an ``extra``); ``segments`` of round
     solids (fewer for trial parts). Raises :class:`FabricationError` when the cuts leave it
-    in pieces. With ``keel_ok``, a link cut ``lift`` > 0 below its bar's face gets the bar's
-    :func:`keeled` web down to the cut, where it clears the links on its joints
-    (``neighbours``, :mod:`keel`): it prints lying on it, not over support."""
+    in pieces. A link cut ``lift`` > 0 below its bar's face gets the bar's :func:`keeled` web
+    down to the cut (``keel_level``: :data:`keel.WIDE`, ``NARROW`` or ``NONE``), where it
+    clears the links on its joints (``neighbours``): it prints lying on it, not over
+    support."""
     lower, upper = joints[i], joints[(i - 1) % 6]
     body = csg.Union(tuple(hex_node(p0, p1, radius, down) for p0, p1 in bars))
     caps = [(p0, p1, radius, -1) for p0, p1 in bars]
-    keel_mm = float(lift) if keel_ok and extra is None and lift is not None and lift > 0 else 0.0
-    made = keeled(body, bars, radius, down, radius * np.sqrt(3.0) / 2 + keel_mm, neighbours) \
-        if keel_mm else None
+    keel_mm = float(lift) if keel_level != keel.NONE and extra is None and lift is not None \
+        and lift > 0 else 0.0
+    made = keeled(body, bars, radius, down, radius * np.sqrt(3.0) / 2 + keel_mm, neighbours,
+                  keel_level == keel.WIDE) if keel_mm else None
     if made is None:
         keel_mm = 0.0
     else:

@@ -63,8 +63,9 @@ ENOUGH_SIZED = 3
 #: More candidates sized past :data:`ENOUGH_SIZED` while every one sized would print a link
 #: over supports by its own layouts (:func:`_lifted_by_plan`).
 FLAT_SEARCH = 2
-#: Rebuilds without the keels that failed the verification (:func:`keel.in_the_way`).
-KEEL_ROUNDS = 2
+#: Rebuilds with the keels that failed the verification a level lower (:func:`keel.in_the_way`:
+#: wide, narrow, none).
+KEEL_ROUNDS = 3
 
 
 @dataclass(frozen=True)
@@ -206,11 +207,11 @@ END_INSET = 1e-4
 
 
 def _fit_and_build(real: Realization, ee: object | None, plan: sizing.Plan, opts: Options,
-                   no_keel: frozenset = frozenset()
+                   keel_levels: tuple[int, ...] = (keel.WIDE,) * 6
                    ) -> tuple[Assembly, sizing.Plan, str | None]:
     """The assembly of ``plan`` and how P became part of link 3 (:mod:`endlink`'s method;
     None without an end-effector); with an automatic size it shrinks while a built link does
-    not fit the bed in its print orientation. The links of ``no_keel`` get no keel."""
+    not fit the bed in its print orientation; ``keel_levels``: each link's keel."""
     end_bars, el = None, None
     if ee is not None:
         from paraloop_core.fabrication import endlink
@@ -229,7 +230,8 @@ def _fit_and_build(real: Realization, ee: object | None, plan: sizing.Plan, opts
             solid = endlink.solid_manifold(el, plan.scale)
             extras = {3: (solid, parts.principal_capsules(solid))}
         asm = assembly.assemble(plan, real.points, real.joint_factors, opts.printer,
-                                plan.kind, end_bars=end_bars, extras=extras, no_keel=no_keel)
+                                plan.kind, end_bars=end_bars, extras=extras,
+                                keel_levels=keel_levels)
         ext = np.array([layout.laid_extent(p.manifold.to_mesh().vert_properties[:, :3],
                                            p.down) for p in asm.links])
         grow = float(bed.laid_fit_factor(ext, opts.printer).min())  # on their print flats
@@ -359,18 +361,22 @@ def _accepted(asm: Assembly, b: base.Base | None, opts: Options) -> bool:
 
 def _settled(x: tuple, opts: Options, progress: Progress | None, tried: list[str]) -> tuple:
     """A built candidate ``x`` of :func:`make` (its last item the verification, None) with its
-    verification, after taking off the keels it fails (:func:`keel.in_the_way`; the
-    candidate rebuilt without them, grounded and verified again; at most
-    :data:`KEEL_ROUNDS` times): those links then print over supports."""
+    verification, after narrowing or taking off the keels it fails (:func:`keel.in_the_way`;
+    the candidate rebuilt so, grounded and verified again; at most :data:`KEEL_ROUNDS`
+    times): a link without its keel then prints over supports."""
     cand, real, ee, plan, asm, ee_method, b, warnings, _ = x
     ver = check.verify(asm, opts.samples, progress=stage(progress, 0.45, 0.95))
     for _ in range(KEEL_ROUNDS):
         blocked = keel.in_the_way([p.keel_mm for p in asm.links], ver["pairs"])
         if not blocked:
             break
+        levels = tuple(max(k - 1, keel.NONE) if i in blocked else k
+                       for i, k in enumerate(asm.keel_levels))
         tried.append(f"{cand.label}: the keel of link{'s' * (len(blocked) > 1)} "
-                     f"{', '.join(map(str, blocked))} comes too close to another link")
-        asm, plan, ee_method = _fit_and_build(real, ee, plan, opts, asm.no_keel | blocked)
+                     f"{', '.join(map(str, blocked))} comes too close to another link: "
+                     + ", ".join(f"link {i} {'narrowed' if levels[i] else 'without'}"
+                                 for i in sorted(blocked)))
+        asm, plan, ee_method = _fit_and_build(real, ee, plan, opts, levels)
         b, warnings = None, []
         if opts.ground:
             asm, b, warnings = stand.ground(asm, opts)
