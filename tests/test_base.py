@@ -202,7 +202,7 @@ def test_a_capped_grounding_rod_outranks_a_capless_one():
     assert rod.kind == "rod" and not any(p.printed for p in rod.pieces)
 
     def row(asm, b=pr.base):
-        return (None, None, None, asm.plan, asm, None, b, [])
+        return printable._Built(None, None, None, asm.plan, asm, None, b, [])
 
     assert pr.base.stands
     assert printable._built_score(row(pr.assembly), True) > \

@@ -189,7 +189,7 @@ def test_automatic_size_fits_the_bed():
     r = F.real()
 
     def fit(p):
-        return printable.predicted_fit(p, r.points, GENERIC)
+        return bed.predicted_fit(p, r.points, GENERIC)
 
     p = sizing.plan(r, GENERIC, F.PLA, "m3", ROD, fit=fit)
     assert fit(p) >= 1.0 and p.level == 0

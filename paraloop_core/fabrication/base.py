@@ -47,8 +47,6 @@ MARGIN = 0.15
 THICKNESS_MM = (5.0, 8.0, 12.0)
 #: Gap (mm) between the plate's socket and anything that moves; socket height in rod diameters.
 GAP_MM, SOCKET_D = 3.0, 1.5
-#: Growth (mm) of the plate's bounding capsules and slab over its exact shape.
-BOUND_SLACK_MM = 1e-4
 #: Samples of the cycle for the centre of mass and the clearances.
 SAMPLES = 360
 #: The rod's clearance to each moving link per required gap.
@@ -412,10 +410,10 @@ def plate_part(b: Base, wall_mm: float, segments: int = 96) -> Part:
     caps = np.array([[mid, mid], [at_top, b.bottom]])
     # the disc lies in its ball and in the slab of its thickness (the verification's bound),
     # both a little grown: its vertices stray ~1e-6 mm through the frame's rounding
-    slabs = np.array([[*up, b.thickness / 2 + BOUND_SLACK_MM], [*up, np.inf]])
+    slabs = np.array([[*up, b.thickness / 2 + parts.CAPSULE_SLACK_MM], [*up, np.inf]])
     return Part("base_plate", b.link, solid, caps,
-                np.array([np.hypot(b.radius, b.thickness / 2) + BOUND_SLACK_MM,
-                          socket_r + BOUND_SLACK_MM]),
+                np.array([np.hypot(b.radius, b.thickness / 2) + parts.CAPSULE_SLACK_MM,
+                          socket_r + parts.CAPSULE_SLACK_MM]),
                 np.array([-1, -1]), -up, "base", tree, slabs)
 
 

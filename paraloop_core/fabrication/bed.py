@@ -8,9 +8,14 @@ slicer's skirt or a slightly off homing pushes over it).
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from paraloop_core.fabrication.profiles import Printer
+
+if TYPE_CHECKING:  # sizing imports this module
+    from paraloop_core.fabrication.sizing import Plan
 
 #: Turns about the vertical (radians, 0.5 degree steps) tried for a footprint: a long thin
 #: part that does not fit the bed square-on may fit diagonally.
@@ -77,3 +82,24 @@ def bed_scale(points: np.ndarray, printer: Printer) -> float:
     _, _, vt = np.linalg.svd(centred)
     ext = np.ptp(np.einsum("pnk,pjk->pnj", centred, vt), axis=1)
     return float(fit_factor(ext, printer).min())
+
+
+def predicted_fit(plan: Plan, points: np.ndarray, printer: Printer,
+                  extra: dict[int, np.ndarray] | None = None) -> float:
+    """By how much the links of ``plan`` may still grow and fit the bed (<= 1: they do not
+    fit): each link's bar (with its width) and bosses, a box along its principal axes;
+    ``extra`` more points per link (design units: the end-effector's vertices on link 3)."""
+    pts = np.asarray(points, float) * plan.scale
+    worst = np.inf
+    for i in range(6):
+        cloud = [pts[2 * i], pts[2 * i + 1], *(np.asarray((extra or {}).get(i, np.zeros((0, 3))),
+                                                          float) * plan.scale)]
+        for j, (s0, s1) in ((plan.layouts[i], plan.layouts[i].lower),
+                            (plan.layouts[(i - 1) % 6], plan.layouts[(i - 1) % 6].upper)):
+            cloud += [j.at(s0), j.at(s1)]
+        c = np.asarray(cloud)
+        centred = c - c.mean(0)
+        vt = np.linalg.svd(centred, full_matrices=False)[2]
+        ext = np.ptp(centred @ vt.T, axis=0) + 2 * max(plan.boss.max(), plan.radii[i])
+        worst = min(worst, float(fit_factor(ext[None], printer)[0]))
+    return worst

@@ -14,7 +14,8 @@ to everything it ever occupies is a distance in the plane through the axis and t
 :data:`CLEAR_MM` outside that surface for both neighbours: the longest such stretch,
 if it is at least :data:`MIN_SHARE` of the bar. This is a prediction only (it ignores the
 other four links, and a neighbour's boss, which the joint zone clears): the verification of
-the built parts decides, and a keel it fails is taken off (:func:`printable.make`).
+the built parts decides, and a keel it fails is narrowed, then taken off
+(:func:`in_the_way`, :func:`printable.make`).
 """
 
 from __future__ import annotations
@@ -23,14 +24,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from paraloop_core.fabrication.voxelspace import point_segment_distance
+
 #: How far (mm) a keel's widest section reaches past its print flat (the cut trims it there).
 PAST_MM = 0.5
 #: Keel levels of a link (:func:`parts.keeled`): as wide as the bar at the cut (two corner
 #: radii), narrow (the hexagon's face, one corner radius: the copy's corners stop above the
 #: cut), none; a keel the verification fails goes one level down.
 WIDE, NARROW, NONE = 2, 1, 0
-#: Added to a keel's capsule radius (mm): its corners lie on the capsule (float rounding).
-CAPSULE_SLACK_MM = 1e-4
 #: Slope (degrees from the bed) of a shortened keel's ends: steeper than the 45 deg a printer
 #: bridges without support.
 END_SLOPE_DEG = 55.0
@@ -62,17 +63,11 @@ def _meridian(x: np.ndarray, origin: np.ndarray, w: np.ndarray) -> np.ndarray:
     return np.stack([np.linalg.norm(d - h[..., None] * w, axis=-1), h], axis=-1)
 
 
-def _to_segment(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Distances ``(...)`` of 2D points ``p`` ``(..., 2)`` from the segment ``a b``."""
-    ab = b - a
-    t = np.clip(((p - a) @ ab) / max(float(ab @ ab), 1e-300), 0.0, 1.0)
-    return np.linalg.norm(p - (a + t[..., None] * ab), axis=-1)
-
-
 def capsule_radius(radius: float, bottom: float) -> float:
     """Radius (mm) of the capsule about the bar's axis moved ``bottom / 2`` down that holds
-    a keel section ``2 radius`` wide reaching ``bottom`` mm below the axis."""
-    return float(np.hypot(radius, bottom / 2)) + CAPSULE_SLACK_MM
+    a keel section ``2 radius`` wide reaching ``bottom`` mm below the axis (its corners lie
+    on it: :func:`parts.keeled` adds the capsules' rounding slack)."""
+    return float(np.hypot(radius, bottom / 2))
 
 
 def span(bar: np.ndarray, radius: float, down: np.ndarray, bottom: float,
@@ -101,7 +96,9 @@ def span(bar: np.ndarray, radius: float, down: np.ndarray, bottom: float,
     for n in neighbours:
         w = np.asarray(n.w, float) / np.linalg.norm(n.w)
         a, b = _meridian(np.asarray(n.bar, float), n.origin, w)
-        gap = _to_segment(_meridian(deepest, n.origin, w), a, b).min(axis=1) - n.radius
+        # (the distance in the meridian plane: the same formula in two dimensions)
+        gap = point_segment_distance(_meridian(deepest, n.origin, w), a, b).min(axis=1) \
+            - n.radius
         clear &= gap >= CLEAR_MM
     # the longest run of clear stations
     edges = np.flatnonzero(np.diff(np.r_[0, clear.astype(np.int8), 0]))

@@ -30,7 +30,7 @@ import numpy as np
 import trimesh
 
 from paraloop_core.errors import FabricationError
-from paraloop_core.fabrication import csg, keel, profiles
+from paraloop_core.fabrication import csg, keel, profiles, sizing
 from paraloop_core.fabrication.joints import GLUED_CAP_SLACK_MM, SEAT_MM, Joint, outward
 from paraloop_core.fabrication.voxelspace import point_segment_distance
 
@@ -40,6 +40,9 @@ SEGMENTS = 48
 EPS_MM = 0.05
 #: Thinnest printed wall anywhere (mm): sheets of an open end-effector are this thick.
 MIN_WALL_MM = 0.8
+#: Added to a capsule's radius (mm) where the solid's own corners lie on it (a keel's box,
+#: the base plate's rim): the mesh's rounding may put them a hair outside.
+CAPSULE_SLACK_MM = 1e-4
 
 
 @dataclass(frozen=True)
@@ -176,7 +179,7 @@ def keeled(body: csg.Node, bars: np.ndarray, radius: float, down: np.ndarray, bo
     over support. And its capsules (:func:`keel.capsule_radius`). None where no keel fits."""
     d = np.asarray(down, float)
     # wide: the copy's side corners below the cut (full width there); narrow: its bottom face
-    sweep = bottom + keel.PAST_MM - (0.0 if wide else radius * np.sqrt(3.0) / 2)
+    sweep = bottom + keel.PAST_MM - (0.0 if wide else radius * sizing.APOTHEM)
     run = sweep / np.tan(np.radians(keel.END_SLOPE_DEG))  # the bottom faces' ends: that slope
     webs, caps = [], []
     for p0, p1 in bars:
@@ -191,7 +194,7 @@ def keeled(body: csg.Node, bars: np.ndarray, radius: float, down: np.ndarray, bo
                               hex_node(p0 + x0 * u + sweep * d, p0 + x1 * u + sweep * d,
                                        radius, d))))
         caps.append((top[0] + bottom / 2 * d, top[1] + bottom / 2 * d,
-                     keel.capsule_radius(radius, bottom), -1))
+                     keel.capsule_radius(radius, bottom) + CAPSULE_SLACK_MM, -1))
     return csg.Union((body, *webs)), caps
 
 
@@ -216,7 +219,7 @@ def link_part(i: int, bars: np.ndarray, radius: float, down: np.ndarray,
     caps = [(p0, p1, radius, -1) for p0, p1 in bars]
     keel_mm = float(lift) if keel_level != keel.NONE and extra is None and lift is not None \
         and lift > 0 else 0.0
-    made = keeled(body, bars, radius, down, radius * np.sqrt(3.0) / 2 + keel_mm, neighbours,
+    made = keeled(body, bars, radius, down, radius * sizing.APOTHEM + keel_mm, neighbours,
                   keel_level == keel.WIDE) if keel_mm else None
     if made is None:
         keel_mm = 0.0
@@ -247,7 +250,7 @@ def link_part(i: int, bars: np.ndarray, radius: float, down: np.ndarray,
     body = csg.Cut(body, tuple(cuts))
     # the print flat: nothing past the bar's down face (or ``lift`` below it)
     face = np.asarray(down, float)
-    level = float(np.max(bars.reshape(-1, 3) @ face)) + radius * np.sqrt(3.0) / 2
+    level = float(np.max(bars.reshape(-1, 3) @ face)) + radius * sizing.APOTHEM
     # an end-effector P is never cut: the flat only where P lies wholly above it
     clear = extra is None or float(np.max(np.asarray(
         extra.to_mesh().vert_properties[:, :3], float) @ face)) <= level + float(lift or 0.0)

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -49,7 +50,7 @@ from paraloop_core.fabrication import (
     thickness,
 )
 from paraloop_core.fabrication.assembly import Assembly
-from paraloop_core.fabrication.profiles import Options, Printer
+from paraloop_core.fabrication.profiles import Options
 from paraloop_core.linkage import loops
 from paraloop_core.linkage.drive import HOLD_RATIO
 from paraloop_core.realization.certified import Realization
@@ -101,27 +102,6 @@ def stage(progress: Progress | None, lo: float, hi: float) -> Progress | None:
     return lambda f, msg: progress(lo + (hi - lo) * f, msg)
 
 
-def predicted_fit(plan: sizing.Plan, points: np.ndarray, printer: Printer,
-                  extra: dict[int, np.ndarray] | None = None) -> float:
-    """By how much the links of ``plan`` may still grow and fit the bed (<= 1: they do not
-    fit): each link's bar (with its width) and bosses, a box along its principal axes;
-    ``extra`` more points per link (design units: the end-effector's vertices on link 3)."""
-    pts = np.asarray(points, float) * plan.scale
-    worst = np.inf
-    for i in range(6):
-        cloud = [pts[2 * i], pts[2 * i + 1], *(np.asarray((extra or {}).get(i, np.zeros((0, 3))),
-                                                          float) * plan.scale)]
-        for j, (s0, s1) in ((plan.layouts[i], plan.layouts[i].lower),
-                            (plan.layouts[(i - 1) % 6], plan.layouts[(i - 1) % 6].upper)):
-            cloud += [j.at(s0), j.at(s1)]
-        c = np.asarray(cloud)
-        centred = c - c.mean(0)
-        vt = np.linalg.svd(centred, full_matrices=False)[2]
-        ext = np.ptp(centred @ vt.T, axis=0) + 2 * max(plan.boss.max(), plan.radii[i])
-        worst = min(worst, float(bed.fit_factor(ext[None], printer)[0]))
-    return worst
-
-
 def _score(plan: sizing.Plan) -> tuple:
     kinds = profiles.AUTO_JOINTS
     rank = -kinds.index(plan.kind) if plan.kind in kinds else 0
@@ -139,7 +119,8 @@ def _plan(real: Realization, opts: Options, size_mm: float | None = None,
         try:
             p = sizing.plan(real, opts.printer, opts.material, kind, opts.rod,
                             size_mm=size_mm or opts.size_mm,
-                            fit=lambda q: predicted_fit(q, real.points, opts.printer, extra))
+                            fit=lambda q: bed.predicted_fit(q, real.points, opts.printer,
+                                                             extra))
         except FabricationError as exc:
             error = error or exc
             continue
@@ -271,19 +252,14 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
             tried.append(f"{cand.label}: not built ({exc})")
             error = exc
             continue
-        warnings: list[str] = []
-        b = None
-        if opts.ground:
-            if progress is not None:
-                progress(0.4, f"grounding {cand.label}: rod and base plate")
-            asm, b, warnings = stand.ground(asm, opts)
-        x = (cand, real, ee, plan, asm, ee_method, b, warnings, None)
+        asm, b, warnings = _grounded(asm, opts, progress, cand.label)
+        x = _Built(cand, real, ee, plan, asm, ee_method, b, warnings)
         if _keeled(asm) and _accepted(asm, b, opts):
             # its keels verified before it is taken: one taken off leaves its link over
             # supports, and the next candidate may lie flat
             hand(asm)
             x = _settled(x, opts, progress, tried)
-            asm, b = x[4], x[6]
+            asm, b = x.asm, x.base
         built.append(x)
         if _accepted(asm, b, opts):
             break
@@ -300,8 +276,8 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
     if not built:
         raise error
     x = max(built, key=lambda x: _built_score(x, opts.ground))
-    hand(x[4])  # the STEP solids start before the verification (again if a keel comes off)
-    if x[8] is None:
+    hand(x.asm)  # the STEP solids start before the verification (again if a keel comes off)
+    if x.ver is None:
         x = _settled(x, opts, progress, tried)
     cand, real, ee, plan, asm, ee_method, b, warnings, ver = x
     hand(asm)
@@ -316,7 +292,7 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
                    "radius": real.radius, "separation": real.separation},
         "sizing": sizing.to_dict(plan, opts.printer, rows.bounds_of(real)),
         "joints": [joints.to_dict(j) for j in asm.joints],
-        "verification": ver, "warnings": warnings + _level_warnings(plan),
+        "verification": ver, "warnings": warnings + sizing.level_warnings(plan),
         "print_flat_slack_mm": asm.slack.tolist(),
         "keels_mm": [p.keel_mm for p in asm.links]}
     # how the loop is held where no base stands on its own (None: it stands)
@@ -359,11 +335,36 @@ def _accepted(asm: Assembly, b: base.Base | None, opts: Options) -> bool:
                 and not _capless(asm))
 
 
-def _settled(x: tuple, opts: Options, progress: Progress | None, tried: list[str]) -> tuple:
-    """A built candidate ``x`` of :func:`make` (its last item the verification, None) with its
-    verification, after narrowing or taking off the keels it fails (:func:`keel.in_the_way`;
-    the candidate rebuilt so, grounded and verified again; at most :data:`KEEL_ROUNDS`
-    times): a link without its keel then prints over supports."""
+class _Built(NamedTuple):
+    """A candidate of :func:`make` built and grounded (``base`` None: no grounding), and its
+    verification once made (:func:`_settled`)."""
+
+    cand: Candidate
+    real: Realization
+    ee: object | None
+    plan: sizing.Plan
+    asm: Assembly
+    ee_method: str | None
+    base: base.Base | None
+    warnings: list[str]
+    ver: dict | None = None
+
+
+def _grounded(asm: Assembly, opts: Options, progress: Progress | None, label: str
+              ) -> tuple[Assembly, base.Base | None, list[str]]:
+    """``asm`` on its grounding rod and base plate (:func:`stand.ground`), unless the options
+    ask for none: ``(assembly, base or None, warnings)``."""
+    if not opts.ground:
+        return asm, None, []
+    if progress is not None:
+        progress(0.4, f"grounding {label}: rod and base plate")
+    return stand.ground(asm, opts)
+
+
+def _settled(x: _Built, opts: Options, progress: Progress | None, tried: list[str]) -> _Built:
+    """A built candidate ``x`` with its verification, after narrowing or taking off the keels
+    it fails (:func:`keel.in_the_way`; the candidate rebuilt so, grounded and verified again;
+    at most :data:`KEEL_ROUNDS` times): a link without its keel then prints over supports."""
     cand, real, ee, plan, asm, ee_method, b, warnings, _ = x
     ver = check.verify(asm, opts.samples, progress=stage(progress, 0.45, 0.95))
     for _ in range(KEEL_ROUNDS):
@@ -377,20 +378,18 @@ def _settled(x: tuple, opts: Options, progress: Progress | None, tried: list[str
                      + ", ".join(f"link {i} {'narrowed' if levels[i] else 'without'}"
                                  for i in sorted(blocked)))
         asm, plan, ee_method = _fit_and_build(real, ee, plan, opts, levels)
-        b, warnings = None, []
-        if opts.ground:
-            asm, b, warnings = stand.ground(asm, opts)
+        asm, b, warnings = _grounded(asm, opts, progress, cand.label)
         ver = check.verify(asm, opts.samples, progress=stage(progress, 0.45, 0.95))
-    return cand, real, ee, plan, asm, ee_method, b, warnings, ver
+    return _Built(cand, real, ee, plan, asm, ee_method, b, warnings, ver)
 
 
-def _built_score(x: tuple, ground: bool) -> tuple:
+def _built_score(x: _Built, ground: bool) -> tuple:
     """Rank of a built candidate of :func:`make` (larger is better; ``max`` keeps the earlier,
     better sized, of equals): on a base (when grounding is asked for), then the fewest
     defects a maker would meet: a grounding rod without its cap, links printed over
     supports, bars thinner than the floors (:data:`sizing.LEVELS`' last level); then standing
     on its plate (else screwed down: the report's ``mount``)."""
-    plan, asm, b = x[3], x[4], x[6]
+    plan, asm, b = x.plan, x.asm, x.base
     defects = int(_capless(asm)) + int(bool(_lifted(asm))) + int(plan.level >= 3)
     return (b is not None or not ground, -defects, b is not None and b.stands)
 
@@ -411,19 +410,3 @@ def _capless(asm: Assembly) -> bool:
     rod left a link in pieces: :func:`stand.ground`'s fallback)."""
     return any(j.kind == "rod" and not any(p.role == "rod cap" for p in j.pieces)
                for j in asm.joints)
-
-
-def _level_warnings(plan: sizing.Plan) -> list[str]:
-    """What the sizing could not reach, in words (:data:`sizing.LEVELS`)."""
-    if plan.level == 2:
-        return ["the certificate leaves room for the gaps of 1 mm between the links, not for "
-                "three times their predicted deflection: handle it gently near its tightest "
-                "pose (report: sizing.limiting_pair)"]
-    if plan.level == 3:
-        width = plan.radii * sizing.FLATS
-        lw = float(np.max(plan.deflection.lengths / width))
-        return [f"bars down to {width.min():.2f} mm wide and up to {lw:.0f} times as long as "
-                f"wide, beyond the {sizing.WIDTH_MM:g} mm and {sizing.LW_MAX:g} a printed bar "
-                "should keep: the best this realization's certificate allows; handle it gently "
-                "(report: sizing.limiting_pair names the pair that limits it)"]
-    return []

@@ -388,3 +388,19 @@ def to_dict(plan: Plan, printer: Printer, b: Bounds | None = None) -> dict:
                       "thinnest bar, then largest bars), every gap between links without a "
                       f"common joint at least max({stiffness.MIN_GAP_MM:g} mm, "
                       f"{stiffness.GAP_PER_DEFLECTION:g} x their predicted deflections)"}
+
+
+def level_warnings(plan: Plan) -> list[str]:
+    """What the sizing could not reach, in words (:data:`LEVELS`)."""
+    if plan.level == 2:
+        return ["the certificate leaves room for the gaps of 1 mm between the links, not for "
+                "three times their predicted deflection: handle it gently near its tightest "
+                "pose (report: sizing.limiting_pair)"]
+    if plan.level == 3:
+        width = plan.radii * FLATS
+        lw = float(np.max(plan.deflection.lengths / width))
+        return [f"bars down to {width.min():.2f} mm wide and up to {lw:.0f} times as long as "
+                f"wide, beyond the {WIDTH_MM:g} mm and {LW_MAX:g} a printed bar "
+                "should keep: the best this realization's certificate allows; handle it gently "
+                "(report: sizing.limiting_pair names the pair that limits it)"]
+    return []
