@@ -8,14 +8,11 @@ slicer's skirt or a slightly off homing pushes over it).
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Any
 
 import numpy as np
 
 from paraloop_core.fabrication.profiles import Printer
-
-if TYPE_CHECKING:  # sizing imports this module
-    from paraloop_core.fabrication.sizing import Plan
 
 #: Turns about the vertical (radians, 0.5 degree steps) tried for a footprint: a long thin
 #: part that does not fit the bed square-on may fit diagonally.
@@ -84,11 +81,12 @@ def bed_scale(points: np.ndarray, printer: Printer) -> float:
     return float(fit_factor(ext, printer).min())
 
 
-def predicted_fit(plan: Plan, points: np.ndarray, printer: Printer,
+def predicted_fit(plan: Any, points: np.ndarray, printer: Printer,
                   extra: dict[int, np.ndarray] | None = None) -> float:
-    """By how much the links of ``plan`` may still grow and fit the bed (<= 1: they do not
-    fit): each link's bar (with its width) and bosses, a box along its principal axes;
-    ``extra`` more points per link (design units: the end-effector's vertices on link 3)."""
+    """By how much the links of ``plan`` (a :class:`sizing.Plan`, untyped here: sizing
+    imports this module) may still grow and fit the bed (<= 1: they do not fit): each link's
+    bar (with its width) and bosses, a box along its principal axes; ``extra`` more points
+    per link (design units: the end-effector's vertices on link 3)."""
     pts = np.asarray(points, float) * plan.scale
     worst = np.inf
     for i in range(6):
