@@ -21,7 +21,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def main(paths: list[str]) -> None:
     files = [Path(p) for p in paths] or sorted((ROOT / "assets" / "designs").glob("*.json"))
-    print("design            base      wall s  steps  ok     loop   contacts  tilt deg  "
+    print("design            base      drive  wall s  steps  ok     loop   contacts  tilt deg  "
           "torque dyn / quasi-static N m   (export + run s)")
     for path in files:
         design = design_mod.load_design(path)
@@ -32,10 +32,12 @@ def main(paths: list[str]) -> None:
             total = time.perf_counter() - t0
             base = "anchored" if rep["anchored"] else "free"
             quasi = rep["peak_torque_quasi_static_nm"]
-            print(f"{path.stem:17s} {base:9s} {rep['wall_seconds']:6.2f}  {rep['steps']:5d}  "
+            dyn = rep["peak_torque_dynamic_nm"]  # None: turned by hand
+            print(f"{path.stem:17s} {base:9s} {rep['drive']:5s}  {rep['wall_seconds']:6.2f}  "
+                  f"{rep['steps']:5d}  "
                   f"{rep['ok']!s:5s}  {'ok' if rep['completed'] else 'LOST':5s}  "
                   f"{rep['non_adjacent_contacts']:8d}  {rep['base_tilt_deg_max']:8.1f}  "
-                  f"{rep['peak_torque_dynamic_nm']:.3g} / "
+                  f"{'-' if dyn is None else f'{dyn:.3g}'} / "
                   f"{quasi if quasi is None else f'{quasi:.3g}'}   ({total:.1f})")
 
 

@@ -29,6 +29,7 @@ from paraloop_core.fabrication import export as export_files
 from paraloop_core.fabrication.printable import Candidate, Options, Printed
 from paraloop_core.fabrication.step_job import StepJob
 from paraloop_core.linkage import drive_plan
+from paraloop_core.linkage.drive import HOLD_RATIO
 from paraloop_core.pipeline import Solution
 from paraloop_core.realization import polyline, realize, roomy
 from paraloop_core.result import json_text, result_to_dict
@@ -273,11 +274,13 @@ def animation(printed: Printed, settings: DriveSettings, frames: int = 240,
     return glb, how
 
 
-def physics_check(printed: Printed, opts: Options, settings: DriveSettings
-                  ) -> tuple[dict, list[tuple[str, bytes]]]:
+def physics_check(printed: Printed, opts: Options, settings: DriveSettings,
+                  hand: bool | None = None) -> tuple[dict, list[tuple[str, bytes]]]:
     """``(report, files)``: one cycle of the printed parts in MuJoCo
     (:mod:`fabrication.physics`): standing free on a table when there is a base (anchored
-    otherwise), the design's drive, the quasi-static torque beside the dynamic one; the files
+    otherwise), the design's drive, the quasi-static torque beside the dynamic one. ``hand``:
+    turned by hand, the base held (None: where the drive report says that one motor cannot
+    hold the loop, ``drive.HOLD_RATIO``; there the motor's run would only show that). The files
     are ``paraloop.xml`` (MJCF) and the bodies' meshes ``physics_<body>.stl`` (standing world
     frame, mm) it refers to."""
     from paraloop_core.fabrication import physics, physics_assembly  # MuJoCo loads here
@@ -285,10 +288,13 @@ def physics_check(printed: Printed, opts: Options, settings: DriveSettings
     model = physics_assembly.model_from_assembly(printed.assembly, opts.material, settings)
     anchored = printed.base is None
     quasi = printed.report["drive"].get("peak_torque_n_m")
-    rep = physics.simulate(model, quasi_static_peak_nm=quasi, anchored=anchored)
+    if hand is None:  # a motor where one can hold the loop, else a hand
+        hand = printed.report["drive"].get("worst_speed_ratio", 0.0) > HOLD_RATIO
+    rep = physics.simulate(model, quasi_static_peak_nm=quasi, anchored=anchored, hand=hand)
     names = {b.name: f"physics_{b.name}.stl" for b in model.bodies}
-    xml = physics.mjcf(model, names, timestep=rep.timestep, anchored=anchored,
-                       servo=(rep.servo_kp, rep.servo_kv))
+    xml = physics.mjcf(model, names, timestep=rep.timestep, anchored=rep.anchored,
+                       servo=None if hand else (rep.servo_kp, rep.servo_kv),
+                       hand=rep.hand_link)
     files = [("paraloop.xml", xml.encode())]
     files += [(names[b.name], b.mesh.export(file_type="stl")) for b in model.bodies]
     return rep.to_dict(), files

@@ -32,6 +32,7 @@ from paraloop_core.fabrication import (
 )
 from paraloop_core.fabrication.physics import Body, Hinge, PhysicsModel
 from paraloop_core.linkage import loops
+from paraloop_core.linkage.drive import HOLD_RATIO
 
 G = 9.81
 MM = 50.0  # mm per design unit of the TV6 loop (about 100 mm across)
@@ -157,13 +158,19 @@ def test_contacts_between_non_adjacent_links_are_reported():
 
 
 @pytest.fixture(scope="module")
-def tv8() -> tuple[PhysicsModel, float, int, np.ndarray]:
-    """tv8's printed loop as ``paraloop export`` makes it (on its rod and base plate) as a
-    physics model, with the quasi-static peak torque of the export's report, the resting
-    (grounded) link and the rod's foot on the table (world, mm)."""
+def tv8_made() -> printable.Printed:
+    """tv8's printed loop as ``paraloop export`` makes it (on its rod and base plate)."""
+    sol = pipeline.solve(design_mod.load_design("assets/designs/tv8.json"))
+    return printed.make(sol, printable.Options(samples=90))[0]
+
+
+@pytest.fixture(scope="module")
+def tv8(tv8_made) -> tuple[PhysicsModel, float, int, np.ndarray]:
+    """tv8's printed loop (``tv8_made``) as a physics model, with the quasi-static peak torque
+    of the export's report, the resting (grounded) link and the rod's foot on the table
+    (world, mm)."""
     design = design_mod.load_design("assets/designs/tv8.json")
-    sol = pipeline.solve(design)
-    made, _ = printed.make(sol, printable.Options(samples=90))
+    made = tv8_made
     quasi = made.report["drive"]["peak_torque_n_m"]
     model = physics_assembly.model_from_assembly(made.assembly, profiles.MATERIALS["pla"],
                                                  design.drive)
@@ -186,6 +193,62 @@ def test_tv8_export_completes_the_cycle(tv8):
     out = rep.to_dict()
     assert out["stands"] is None and out["min_table_clearance_mm"] is None
     json.dumps(out, allow_nan=False)
+
+
+def test_link_path_is_the_prediction_at_its_samples(tv8):
+    """The hand's path (product of the hinge rotations from the grounded link) equals the
+    kinematic prediction at its samples and moves smoothly between them."""
+    model = tv8[0]
+    size = physics_model.size_mm(model)
+    for link in range(6):
+        path = physics_model.link_path(model, link, model.time_s)
+        assert np.abs(path - model.link_poses[:, link]).max() < 1e-9 * size
+    mid = 0.5 * (model.time_s[1:] + model.time_s[:-1])
+    path = physics_model.link_path(model, 3, mid)[:, :3, 3]
+    ends = model.link_poses[:, 3, :3, 3]
+    assert np.abs(path - 0.5 * (ends[1:] + ends[:-1])).max() < 1e-3 * size
+
+
+def test_tv8_turned_by_hand(tv8, monkeypatch):
+    """The base held, the opposite link moved along its path: the loop follows the prediction
+    far inside the tolerance; without the hand's lead (the weld's lag) it trails by
+    several times more."""
+    model = tv8[0]
+    rep = physics.simulate(model, hand=True)
+    assert rep.ok and rep.completed and rep.non_adjacent_contacts == 0
+    assert rep.drive == "hand" and rep.hand_link == physics_model.hand_link(model)
+    assert (rep.hand_link - model.grounded_link) % 6 in (2, 3, 4)
+    assert rep.anchored and rep.stands is None and rep.peak_torque_dynamic_nm is None
+    assert rep.max_pose_error_mm < 0.05 * rep.pose_tolerance_mm
+    out = rep.to_dict()
+    assert out["torque_nm"] == [] and out["servo_kp"] is None
+    json.dumps(out, allow_nan=False)
+    from app.cli.simulate import summary
+    from app.panels.summary import physics_text
+
+    assert f"link {rep.hand_link} turned by hand" in summary(out) and "torque" not in summary(out)
+    assert "turned by hand" in physics_text(out) and "torque" not in physics_text(out)
+    monkeypatch.setattr(physics, "HAND_LEAD_S", 0.0)
+    trailing = physics.simulate(model, hand=True)
+    assert trailing.max_pose_error_mm > 3.0 * rep.max_pose_error_mm
+
+
+def test_physics_check_turns_by_hand_where_a_motor_cannot_hold(tv8_made, tmp_path):
+    """``printed.physics_check`` picks the hand exactly where the drive report's worst speed
+    ratio passes ``drive.HOLD_RATIO``; its MJCF then has the hand and no motor."""
+    design = design_mod.load_design("assets/designs/tv8.json")
+    made = tv8_made
+    ratio = made.report["drive"]["worst_speed_ratio"]
+    assert ratio < HOLD_RATIO
+    report = {**made.report, "drive": {**made.report["drive"], "worst_speed_ratio": 1.01 *
+                                       HOLD_RATIO}}
+    rep, files = printed.physics_check(replace(made, report=report), printable.Options(),
+                                       design.drive)
+    assert rep["drive"] == "hand" and rep["ok"]
+    for name, data in files:
+        (tmp_path / name).write_bytes(data)
+    m = mujoco.MjModel.from_xml_path(str(tmp_path / "paraloop.xml"))
+    assert m.nu == 0 and m.nmocap == 1 and m.neq == 3
 
 
 def test_the_printed_base_stands_and_a_light_narrow_one_tips(tv8):
@@ -321,3 +384,25 @@ def test_a_blow_up_is_reported_not_raised(monkeypatch):
     assert rep.steps < len(np.arange(0.0, model.time_s[-1], rep.timestep))
     assert any("unstable" in w for w in rep.mujoco_warnings)
     json.dumps(rep.to_dict(), allow_nan=False)
+
+
+def test_a_loop_no_motor_holds_is_turned_by_the_rigid_hand(monkeypatch):
+    """Random design 62009 (its motion's worst speed ratio is over 600): the motor's run loses
+    the loop; held opposite the grounded link, one half of the loop is nearly a mechanism at
+    home and the links sag off by tens of mm; held at the link ``hand_link`` picks (both
+    halves rigid over the cycle), the loop follows its prediction."""
+    from independent.generic_designs import random_design
+
+    design = design_mod.design_from_dict(random_design(62009))
+    made, _ = printed.make(pipeline.solve(design), printable.Options(samples=8))
+    assert made.report["drive"]["worst_speed_ratio"] > HOLD_RATIO
+    model = physics_assembly.model_from_assembly(made.assembly, profiles.MATERIALS["pla"],
+                                                 design.drive)
+    motor = physics.simulate(model, anchored=True)
+    assert not motor.completed
+    rigid = physics.simulate(model, hand=True)
+    assert rigid.completed and rigid.max_pose_error_mm < 0.25 * rigid.pose_tolerance_mm
+    opposite = (model.grounded_link + 3) % 6
+    assert rigid.hand_link != opposite
+    monkeypatch.setattr(physics, "hand_link", lambda _: opposite)
+    assert not physics.simulate(model, hand=True).completed

@@ -128,17 +128,21 @@ def physics_text(rep: dict) -> str:
     n = rep["non_adjacent_contacts"]
     contact = ("no contact between links without a common joint" if n == 0 else
                f"**{n} contacts** between links without a common joint")
-    if rep.get("anchored"):
+    if rep.get("drive") == "hand":
+        base = (f"turned by hand (the base held, link {rep['hand_link']} moved: one motor "
+                "cannot hold this loop)")
+    elif rep.get("anchored"):
         base = "held by its resting link (no base)"
     elif rep["stands"]:
         base = f"the base does not tip (tilt {rep['base_tilt_deg_max']:.1f}°)"
     else:
         base = f"**the base tips** ({rep['base_tilt_deg_max']:.0f}°)"
     quasi = rep.get("peak_torque_quasi_static_nm")
-    torque = (f"motor torque {rep['peak_torque_dynamic_nm']:.2g} N·m with inertia"
-              + ("" if quasi is None else f" ({quasi:.2g} turned slowly)"))
+    torque = "" if rep.get("drive") == "hand" else (
+        f", motor torque {rep['peak_torque_dynamic_nm']:.2g} N·m with inertia"
+        + ("" if quasi is None else f" ({quasi:.2g} turned slowly)"))
     return (f"**Physics check {ok}** (MuJoCo, one {rep['sim_seconds']:.0f} s cycle, "
-            f"{rep['wall_seconds']:.0f} s to run): {cycle}, {contact}, {base}, {torque}.")
+            f"{rep['wall_seconds']:.0f} s to run): {cycle}, {contact}, {base}{torque}.")
 
 
 class SummaryCard:
@@ -153,9 +157,10 @@ class SummaryCard:
             self.physics_button = gui.add_button(
                 "Run physics check", disabled=True, icon=viser.Icon.PLAYER_PLAY,
                 hint="simulate the parts above through one cycle (MuJoCo: their masses, the "
-                     "motor, gravity, standing on a table): does it complete the cycle, do "
-                     "parts touch, does the base tip, and the torque with inertia; takes "
-                     "several seconds, in the background")
+                     "motor, gravity, standing on a table; turned by hand instead where one "
+                     "motor cannot hold the loop): does it complete the cycle, do parts "
+                     "touch, does the base tip, and the torque with inertia; takes several "
+                     "seconds, in the background")
             self.physics = gui.add_markdown(NOT_RUN)
         self.physics_button.on_click(handler(lambda _: on_physics()))
 

@@ -27,6 +27,13 @@ motor fed the rigid prediction of the torque (:func:`physics_model.rigid_dynamic
 feedforward), a position servo (``kp``) and a velocity servo (``kv``) fed the schedule's angle
 and speed. The servos correct what the prediction misses (the closure's and the table's
 compliance, a base that moves); at perfect tracking the damping term is 0.
+
+**Hand** (``hand=k``, instead of the motor): the base is held (anchored) and a hand holds
+link k (:func:`physics_model.hand_link`: across the loop from the grounded link): a mocap
+body ``hand`` welded to link k's first body (the closure's stiffness), which the caller moves
+along link k's path. With two links held, each half of the loop is a chain of 2 - 4 hinges
+between fixed ends, rigid where its screws are independent: the way paradoxical loops are
+turned by hand.
 """
 
 from __future__ import annotations
@@ -58,7 +65,7 @@ ANCHOR_SPAN = 0.1
 #: motor follow any closure gap magnified: at MuJoCo's default impedance 0.9 - 0.95 tv8's links
 #: were 9 mm off the prediction for a 0.15 mm gap; TV6 (tests) 2.5 mm for a 0.013 mm gap at
 #: 0.999 and 0.14 mm at 0.9999.
-CLOSURE_SOLREF = (0.002, 1.0)
+CLOSURE_SOLREF = (0.001, 1.0)
 CLOSURE_SOLIMP = (0.9999, 0.9999, 0.001)
 #: Servo bandwidth times the timestep (:func:`servo_gains`). Both gains are integrated
 #: explicitly (semi-implicit Euler): MuJoCo's implicit integrators apply the implicit velocity
@@ -136,15 +143,17 @@ def _full_inertia(i: np.ndarray) -> str:
 
 
 def mjcf(model: PhysicsModel, mesh_names: Mapping[str, str] | None = None, *,
-         timestep: float = 1e-3, anchored: bool = False,
-         servo: tuple[float, float] | None = None) -> str:
+         timestep: float = 5e-4, anchored: bool = False,
+         servo: tuple[float, float] | None = None, hand: int | None = None) -> str:
     """The MJCF of ``model`` (module docstring) at ``timestep`` (s). ``mesh_names``: body name
     -> STL file (mm, home pose; written by the caller beside the MJCF) of a visual geom per
     body (None: no visual geoms, as :mod:`physics` simulates). ``anchored``: the base is fixed
     to the world (a mounted loop) instead of standing free on the table. ``servo``: the gains
     ``(kp, kv)`` (None: :func:`servo_gains` of the least rigid inertia along the prediction,
-    right for an anchored base; :func:`physics.simulate` reports the gains it used)."""
+    right for an anchored base; :func:`physics.simulate` reports the gains it used). ``hand``:
+    link held by the hand instead of the motor (module docstring; the base anchored)."""
     tr = tree(model)
+    anchored = anchored or hand is not None
     kp, kv = servo if servo is not None else \
         servo_gains(float(rigid_dynamics(model, GRAVITY_WORLD)[0].min()), timestep)
     by_name = {b.name: b for b in model.bodies}
@@ -201,7 +210,15 @@ def mjcf(model: PhysicsModel, mesh_names: Mapping[str, str] | None = None, *,
                 f'body2="{first[(c + 1) % 6]}" anchor="{_floats(p * M_PER_MM)}" '
                 f'solref="{_floats(CLOSURE_SOLREF)}" solimp="{_floats(CLOSURE_SOLIMP)}"/>'
                 for k, p in enumerate(tr.anchors)]
+    if hand is not None:
+        connects.append(f'    <weld name="hand" body1="hand" body2="{first[hand]}" '
+                        f'solref="{_floats(CLOSURE_SOLREF)}" solimp="{_floats(CLOSURE_SOLIMP)}"/>')
+        bodies.append('    <body name="hand" mocap="true"/>')
     motor = f"hinge_{model.motor_joint}"
+    actuators = [] if hand is not None else [
+        f'    <motor name="{FEEDFORWARD}" joint="{motor}"/>',
+        f'    <position name="{POSITION}" joint="{motor}" kp="{kp:.9g}"/>',
+        f'    <velocity name="{VELOCITY}" joint="{motor}" kv="{kv:.9g}"/>']
     table_z = model.table_z_mm * M_PER_MM
     return "\n".join([
         '<mujoco model="paraloop">',
@@ -218,11 +235,7 @@ def mjcf(model: PhysicsModel, mesh_names: Mapping[str, str] | None = None, *,
         '  </worldbody>',
         '  <contact>', *excludes, '  </contact>',
         '  <equality>', *connects, '  </equality>',
-        '  <actuator>',
-        f'    <motor name="{FEEDFORWARD}" joint="{motor}"/>',
-        f'    <position name="{POSITION}" joint="{motor}" kp="{kp:.9g}"/>',
-        f'    <velocity name="{VELOCITY}" joint="{motor}" kv="{kv:.9g}"/>',
-        '  </actuator>',
+        '  <actuator>', *actuators, '  </actuator>',
         '</mujoco>', ""])
 
 

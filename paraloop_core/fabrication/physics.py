@@ -20,6 +20,16 @@ against the loop). The reported dynamic torque is the sum of the three actuator 
 gravity, inertia, the constraints and a moving base ask of the motor. It is measured, not
 copied: with the feedforward set to zero the servos alone give the same torque (tests).
 
+**By hand** (``hand=True``; :func:`printed.physics_check` chooses it where one motor cannot
+hold the loop, ``drive.HOLD_RATIO``): no motor; the base is held and a hand holds a link
+across the loop (:func:`physics_model.hand_link`: the one that keeps both halves of the loop
+rigid; :mod:`mjcf`), moved along that link's path
+(:func:`physics_model.link_path`) on the same schedule. The weld that carries the hand trails
+a moving target by ``2 timeconst dampratio^2`` (MuJoCo's reference acceleration damps the
+relative velocity, and a mocap body has none), so the hand leads its path by that time
+(:data:`HAND_LEAD_S`): tv8's and random loops' links then follow the prediction to 0.01 -
+0.3 mm instead of 3 - 4 mm. No torque is reported (the hand's effort is not the motor's).
+
 **Checks** (:class:`PhysicsReport`):
 
 * ``completed``: no numerical blow-up, and at every sample time each link's pose relative to
@@ -39,13 +49,15 @@ copied: with the feedforward set to zero the servos alone give the same torque (
 * the dynamic peak torque beside the rigid prediction's and the quasi-static one the caller
   computed (gravity only).
 
-**Timestep and solver** (:data:`TIMESTEP`): 1 ms is the largest step at which MuJoCo keeps the
-closure's time constant of 2 ms (it refuses time constants under two steps); the servo's
-bandwidth ``0.25 / timestep`` is then 250 rad/s, far above the schedule's content, and half
-the closure's rate. Integrator ``Euler`` (semi-implicit; MuJoCo's implicit integrators open
-the closed loop, see :data:`mjcf.SERVO_STEP`), the default Newton solver (a few iterations for
-11 degrees of freedom). A 10 s cycle is 10 000 steps: 0.3 - 0.7 s of wall time anchored, 1 -
-3 s free on the table (the contacts), on one core.
+**Timestep and solver** (:data:`TIMESTEP`): 0.5 ms, and the closure's time constant the
+least MuJoCo allows at that step (two steps, ``mjcf.CLOSURE_SOLREF``); the servo's bandwidth
+``0.25 / timestep`` is then 500 rad/s, far above the schedule's content, and half the
+closure's rate. A gear ratio g between the motor and a far joint multiplies the servo's lag
+by g at the links: at 1 ms random loop 62013 (g up to 14, standing free, where the light
+base lowers the servo's gains) trailed its prediction by 12 mm (tolerance 8), at 0.5 ms by
+0.9 mm. Integrator ``Euler`` (semi-implicit; MuJoCo's implicit integrators open the closed
+loop, see :data:`mjcf.SERVO_STEP`), the default Newton solver (a few iterations for 11
+degrees of freedom). A 10 s cycle is 20 000 steps.
 """
 
 from __future__ import annotations
@@ -57,9 +69,11 @@ from dataclasses import asdict, dataclass
 import mujoco
 import numpy as np
 from scipy.interpolate import CubicSpline
+from scipy.spatial.transform import Rotation
 
 from paraloop_core.errors import FabricationError
 from paraloop_core.fabrication import mjcf as mjcf_mod
+from paraloop_core.fabrication import physics_measure as measure
 from paraloop_core.fabrication.mjcf import mjcf
 from paraloop_core.fabrication.physics_model import (
     GRAVITY_WORLD,
@@ -68,8 +82,9 @@ from paraloop_core.fabrication.physics_model import (
     Hinge,
     PhysicsModel,
     check_model,
+    hand_link,
     hinge_angles,
-    mass_properties,
+    link_path,
     rigid_dynamics,
     size_mm,
 )
@@ -77,7 +92,7 @@ from paraloop_core.fabrication.physics_model import (
 __all__ = ["Body", "Hinge", "PhysicsModel", "PhysicsReport", "simulate", "mjcf"]
 
 #: Default timestep (s), see the module docstring.
-TIMESTEP = 1e-3
+TIMESTEP = 5e-4
 #: Pose tolerance as a fraction of the model's size (``completed``).
 POSE_FRACTION = 0.02
 #: The base tips when it tilts by more than this (deg) from its settled pose ...
@@ -88,6 +103,8 @@ LIFT_LIMIT_MM = 1.0
 SETTLE_S = 0.2
 #: Samples of the torque curve in the report.
 CURVE_SAMPLES = 128
+#: How far (s) the hand leads its link's path: the weld's lag (module docstring, By hand).
+HAND_LEAD_S = 2.0 * mjcf_mod.CLOSURE_SOLREF[0] * mjcf_mod.CLOSURE_SOLREF[1] ** 2
 
 
 @dataclass(frozen=True)
@@ -108,9 +125,11 @@ class PhysicsReport:
     base_tilt_deg_max: float
     base_lift_mm_max: float
     base_slide_mm_max: float
-    peak_torque_dynamic_nm: float
+    drive: str  # "motor" or "hand" (module docstring)
+    hand_link: int | None  # the link the hand holds (None: the motor drives)
+    peak_torque_dynamic_nm: float | None  # None: turned by hand
     peak_torque_quasi_static_nm: float | None  # as the caller computed it
-    peak_torque_rigid_nm: float  # rigid prediction (physics_model.rigid_dynamics)
+    peak_torque_rigid_nm: float | None  # rigid prediction (physics_model.rigid_dynamics)
     torque_time_s: tuple[float, ...]
     torque_nm: tuple[float, ...]
     motor_joint: int
@@ -121,8 +140,8 @@ class PhysicsReport:
     steps: int
     sim_seconds: float
     wall_seconds: float
-    servo_kp: float
-    servo_kv: float
+    servo_kp: float | None  # None: turned by hand
+    servo_kv: float | None
     mujoco_warnings: tuple[str, ...]
     method: str
 
@@ -144,9 +163,10 @@ class PhysicsReport:
 
 def simulate(model: PhysicsModel, *, timestep: float = TIMESTEP,
              quasi_static_peak_nm: float | None = None, anchored: bool = False,
-             settle_s: float = SETTLE_S) -> PhysicsReport:
+             settle_s: float = SETTLE_S, hand: bool = False) -> PhysicsReport:
     """Run one cycle of ``model`` (module docstring) and check it. ``anchored``: the base is
-    fixed in the world (a mounted loop; no table, no tipping check). Raises
+    fixed in the world (a mounted loop; no table, no tipping check). ``hand``: turned by hand
+    instead of the motor (module docstring; anchored). Raises
     :class:`FabricationError` (``bad-parameters``) for a malformed model or option."""
     wall = time.perf_counter()
     check_model(model)
@@ -163,35 +183,42 @@ def simulate(model: PhysicsModel, *, timestep: float = TIMESTEP,
     previous = mujoco.get_mju_user_warning()
     mujoco.set_mju_user_warning(messages.append)
     try:
-        return _simulate(model, timestep, quasi_static_peak_nm, anchored, settle_s, wall,
-                         messages)
+        return _simulate(model, timestep, quasi_static_peak_nm, anchored or hand, settle_s,
+                         wall, messages, hand)
     finally:
         mujoco.set_mju_user_warning(previous)
 
 
 def _simulate(model: PhysicsModel, timestep: float, quasi_static_peak_nm: float | None,
-              anchored: bool, settle_s: float, wall: float, messages: list[str]
-              ) -> PhysicsReport:
+              anchored: bool, settle_s: float, wall: float, messages: list[str],
+              hand: bool) -> PhysicsReport:
     tree = mjcf_mod.tree(model)
     times = np.asarray(model.time_s, float)
     inertia, rigid, gravity = rigid_dynamics(model, GRAVITY_WORLD)
+    held = hand_link(model) if hand else None
     servo = mjcf_mod.servo_gains(float(inertia.min()), timestep)  # right when anchored
     m = mujoco.MjModel.from_xml_string(mjcf(model, timestep=timestep, anchored=anchored,
-                                            servo=servo))
+                                            servo=servo, hand=held))
     d = mujoco.MjData(m)
-    servo = mjcf_mod.servo_gains(min(float(inertia.min()), _least_inertia(m, d, model, tree)),
-                                 timestep)
-    m = mujoco.MjModel.from_xml_string(mjcf(model, timestep=timestep, anchored=anchored,
-                                            servo=servo))
-    d = mujoco.MjData(m)
+    if not hand:
+        servo = mjcf_mod.servo_gains(
+            min(float(inertia.min()), _least_inertia(m, d, model, tree)), timestep)
+        m = mujoco.MjModel.from_xml_string(mjcf(model, timestep=timestep, anchored=anchored,
+                                                servo=servo))
+        d = mujoco.MjData(m)
     ids = _Ids(m, model, tree)
     ref = CubicSpline(times, hinge_angles(model), axis=0)
     steps = int(math.ceil(times[-1] / timestep)) + 1
     t_step = np.minimum(np.arange(steps) * timestep, times[-1])
-    ctrl = np.stack([np.interp(t_step, times, rigid), ref(t_step)[:, model.motor_joint],
-                     ref(t_step, 1)[:, model.motor_joint]], axis=1)
-
-    d.ctrl[:] = gravity[0], 0.0, 0.0  # hold the home pose
+    if hand:
+        ctrl = np.zeros((steps, 0))
+        path = link_path(model, held, np.minimum(t_step + HAND_LEAD_S, times[-1]))
+        mocap = (path[:, :3, 3] * M_PER_MM, _wxyz(path[:, :3, :3]))
+    else:
+        ctrl = np.stack([np.interp(t_step, times, rigid), ref(t_step)[:, model.motor_joint],
+                         ref(t_step, 1)[:, model.motor_joint]], axis=1)
+        mocap = None
+        d.ctrl[:] = gravity[0], 0.0, 0.0  # hold the home pose
     for _ in range(int(round(settle_s / timestep))):
         mujoco.mj_step(m, d)
     mujoco.mj_forward(m, d)
@@ -200,9 +227,15 @@ def _simulate(model: PhysicsModel, timestep: float, quasi_static_peak_nm: float 
     rates = ref(0.0, 1)
     for joint, _ in tree.joint.values():
         d.qvel[m.jnt_dofadr[m.joint(f"hinge_{joint}").id]] = rates[joint]
-    run = _run(m, d, ids, ctrl, steps)
-    return _report(model, tree, run, settled, ctrl[:, 1], anchored, timestep,
-                   quasi_static_peak_nm, float(np.abs(rigid).max()), servo, wall, messages)
+    run = _run(m, d, ids, ctrl, steps, mocap)
+    return _report(model, tree, run, settled, ref(t_step)[:, model.motor_joint], anchored,
+                   timestep, quasi_static_peak_nm, None if hand else float(np.abs(rigid).max()),
+                   None if hand else servo, held, wall, messages)
+
+
+def _wxyz(rot: np.ndarray) -> np.ndarray:
+    """Unit quaternions ``(T, 4)`` (``wxyz``) of rotation matrices ``(T, 3, 3)``."""
+    return Rotation.from_matrix(rot).as_quat()[:, [3, 0, 1, 2]]
 
 
 def _least_inertia(m: mujoco.MjModel, d: mujoco.MjData, model: PhysicsModel,
@@ -255,10 +288,11 @@ class _Run:
     diverged: bool
 
 
-def _run(m, d, ids: _Ids, ctrl: np.ndarray, steps: int) -> _Run:
-    """Step the cycle with the actuators' controls ``ctrl`` ``(steps, 3)``, recording the
-    state at the start of each step (what ``mj_step`` computes its forces and contacts
-    from)."""
+def _run(m, d, ids: _Ids, ctrl: np.ndarray, steps: int,
+         mocap: tuple[np.ndarray, np.ndarray] | None) -> _Run:
+    """Step the cycle with the actuators' controls ``ctrl`` ``(steps, nu)`` and the hand's
+    ``mocap`` (positions m, ``wxyz``; None: no hand), recording the state at the start of
+    each step (what ``mj_step`` computes its forces and contacts from)."""
     xpos, xmat = np.zeros((steps, 6, 3)), np.zeros((steps, 6, 3, 3))
     root, torque, motor = np.zeros((steps, 4, 4)), np.zeros(steps), np.zeros(steps)
     contacts: dict = {}
@@ -268,6 +302,8 @@ def _run(m, d, ids: _Ids, ctrl: np.ndarray, steps: int) -> _Run:
     for k in range(steps):
         motor[k] = d.qpos[ids.motor]
         d.ctrl[:] = ctrl[k]
+        if mocap is not None:
+            d.mocap_pos[0], d.mocap_quat[0] = mocap[0][k], mocap[1][k]
         mujoco.mj_step(m, d)
         if d.warning[bad].number:
             done = k
@@ -290,48 +326,45 @@ def _run(m, d, ids: _Ids, ctrl: np.ndarray, steps: int) -> _Run:
                 touching[:done], done, done < steps)
 
 
-def _points(poses: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """``points`` ``(..., P, 3)`` moved by ``poses`` ``(..., 4, 4)`` (broadcast)."""
-    return np.einsum("...ij,...pj->...pi", poses[..., :3, :3], points) + poses[..., None, :3, 3]
-
-
 def _report(model: PhysicsModel, tree: mjcf_mod.Tree, run: _Run,
             settled: tuple[np.ndarray, np.ndarray], target: np.ndarray, anchored: bool,
-            dt: float, quasi_static: float | None, rigid: float, gains: tuple[float, float],
-            wall: float, messages: list[str]) -> PhysicsReport:
+            dt: float, quasi_static: float | None, rigid: float | None,
+            gains: tuple[float, float] | None, held: int | None, wall: float,
+            messages: list[str]) -> PhysicsReport:
     n, g = run.done, model.grounded_link
     tol = POSE_FRACTION * size_mm(model)
     poses = np.zeros((n, 6, 4, 4))  # simulated T_world_link, mm
     poses[..., :3, :3], poses[..., :3, 3], poses[..., 3, 3] = run.xmat, run.xpos / M_PER_MM, 1.0
-    corners = np.array([_corners([b for b in model.bodies if b.link == k]) for k in range(6)])
+    corners = np.array([measure.corners([b for b in model.bodies if b.link == k])
+                        for k in range(6)])
     # pose error at the sample times reached, relative to the grounded link, the simulated
     # points interpolated linearly between the steps around each sample time
     times = np.asarray(model.time_s, float)
     reached = times <= (n - 1) * dt  # none if the run blew up at once
     k0 = np.minimum((times[reached] / dt).astype(int), max(n - 2, 0))
     w = (times[reached] / dt - k0)[:, None, None, None]
-    sim = _points(np.linalg.inv(poses[:, g:g + 1]) @ poses, corners)
+    sim = measure.points(np.linalg.inv(poses[:, g:g + 1]) @ poses, corners)
     sim = (1 - w) * sim[k0] + w * sim[np.minimum(k0 + 1, n - 1)]
     kin = np.asarray(model.link_poses, float)[reached]
-    kin = _points(np.linalg.inv(kin[:, g:g + 1]) @ kin, corners)
+    kin = measure.points(np.linalg.inv(kin[:, g:g + 1]) @ kin, corners)
     error = float(np.linalg.norm(sim - kin, axis=-1).max(initial=0.0))
     if run.diverged:  # the links are lost (inf; None in JSON)
         error = np.inf
     completed = bool(reached.all()) and error <= tol
     # closure: the two anchors as carried by both closure links
     c = tree.closure
-    ends = [_points(poses[:, k], tree.anchors) for k in (c, (c + 1) % 6)]
+    ends = [measure.points(poses[:, k], tree.anchors) for k in (c, (c + 1) % 6)]
     closure = float(np.linalg.norm(ends[0] - ends[1], axis=-1).max(initial=0.0))
     tilt, lift, slide, clearance, stands = 0.0, 0.0, 0.0, None, None
     if not anchored:
-        tilt, lift, slide = _base_motion(model, run.root, settled)
+        tilt, lift, slide = measure.base_motion(model, run.root, settled)
         stands = tilt <= TILT_LIMIT_DEG and lift <= LIFT_LIMIT_MM
-        clearance = _table_clearance(model, poses[np.round(times[reached] / dt).astype(int)])
+        clearance = measure.table_clearance(model, poses[np.round(times[reached] / dt).astype(int)])
     pairs = tuple({"bodies": list(p), "steps": r[0], "first_time_s": r[1] * dt,
                    "max_depth_mm": r[2]} for p, r in sorted(run.contacts.items()))
     contacts = int(run.touching.sum())
-    curve_t = np.linspace(0.0, times[-1], CURVE_SAMPLES)
-    curve = np.interp(curve_t, np.arange(n) * dt, run.torque) if n else np.zeros(CURVE_SAMPLES)
+    curve_t = np.linspace(0.0, times[-1], CURVE_SAMPLES) if held is None else np.zeros(0)
+    curve = np.interp(curve_t, np.arange(n) * dt, run.torque) if n else np.zeros(len(curve_t))
     ok = completed and contacts == 0 and (anchored or (bool(stands) and clearance >= 0.0))
     return PhysicsReport(
         ok=ok, completed=completed, max_pose_error_mm=error, pose_tolerance_mm=tol,
@@ -340,54 +373,23 @@ def _report(model: PhysicsModel, tree: mjcf_mod.Tree, run: _Run,
         unchecked_bodies=tuple(b.name for b in model.bodies if not b.convex),
         min_table_clearance_mm=clearance, stands=stands, base_tilt_deg_max=tilt,
         base_lift_mm_max=lift, base_slide_mm_max=slide,
-        peak_torque_dynamic_nm=float(np.abs(run.torque).max(initial=0.0)),
+        drive="motor" if held is None else "hand", hand_link=held,
+        peak_torque_dynamic_nm=None if held is not None else
+        float(np.abs(run.torque).max(initial=0.0)),
         peak_torque_quasi_static_nm=quasi_static, peak_torque_rigid_nm=rigid,
         torque_time_s=tuple(np.round(curve_t, 6).tolist()),
         torque_nm=tuple(float(f"{v:.6g}") for v in curve), motor_joint=model.motor_joint,
         grounded_link=g, closure_joint=c, anchored=anchored, timestep=dt, steps=n,
-        sim_seconds=n * dt, wall_seconds=time.perf_counter() - wall, servo_kp=float(gains[0]),
-        servo_kv=float(gains[1]), mujoco_warnings=tuple(messages), method=METHOD)
-
-
-def _corners(bodies: list[Body]) -> np.ndarray:
-    """The 8 corners ``(8, 3)`` (mm, home) of the bounding box of ``bodies``' meshes."""
-    box = np.array([b.mesh.bounds for b in bodies])
-    lo, hi = box[:, 0].min(axis=0), box[:, 1].max(axis=0)
-    return np.array([[(lo, hi)[i >> k & 1][k] for k in range(3)] for i in range(8)])
-
-
-def _base_motion(model: PhysicsModel, root: np.ndarray, settled: tuple[np.ndarray, np.ndarray]
-                 ) -> tuple[float, float, float]:
-    """Largest tilt (deg), rise of the lowest point and horizontal slide of the base group's
-    centre of mass (mm) relative to the settled pose."""
-    ref = np.eye(4)
-    ref[:3, :3], ref[:3, 3] = settled[1], settled[0] / M_PER_MM
-    rel = np.linalg.inv(ref) @ root
-    cos = np.clip(0.5 * (np.trace(rel[:, :3, :3], axis1=1, axis2=2) - 1.0), -1.0, 1.0)
-    tilt = float(np.degrees(np.arccos(cos)).max(initial=0.0))
-    base = [b for b in model.bodies if b.link in (-1, model.grounded_link)]
-    hull = np.concatenate([b.mesh.convex_hull.vertices for b in base])
-    low = _points(root, hull)[..., 2].min(axis=-1) - _points(ref, hull)[:, 2].min()
-    masses = np.array([b.mass_kg for b in base])
-    com = masses @ np.array([mass_properties(b)[0] for b in base]) / masses.sum()
-    slide = _points(root, com[None])[:, 0, :2] - _points(ref, com[None])[0, :2]
-    return tilt, float(low.max(initial=0.0)), float(np.linalg.norm(slide, axis=-1).max(initial=0.0))
-
-
-def _table_clearance(model: PhysicsModel, poses: np.ndarray) -> float:
-    """Least height (mm) of the moving bodies' hull vertices above the table with the links
-    at ``poses`` ``(T, 6, 4, 4)`` (mm; inf if none)."""
-    low = np.inf
-    for b in model.bodies:
-        if b.link not in (-1, model.grounded_link):
-            z = _points(poses[:, b.link], b.mesh.convex_hull.vertices)[..., 2]
-            low = min(low, float(z.min(initial=np.inf)))
-    return low - model.table_z_mm
+        sim_seconds=n * dt, wall_seconds=time.perf_counter() - wall,
+        servo_kp=None if gains is None else float(gains[0]),
+        servo_kv=None if gains is None else float(gains[1]), mujoco_warnings=tuple(messages),
+        method=METHOD)
 
 
 METHOD = ("MuJoCo forward simulation of the parts as rigid bodies (masses, inertia from the "
           "meshes at uniform density), hinges on the joint axes, the loop closed by two connect "
           "constraints on one hinge's axis, gravity -z, the base free on a table with friction "
           "1 (unless anchored), the motor hinge position- and velocity-servoed along the "
-          "schedule; torque = the servo's force; pose error relative to the grounded link at "
-          "the corners of each link's bounding box")
+          "schedule (or, turned by hand, the base held and the opposite link moved along its "
+          "path by a welded mocap body); torque = the servo's force; pose error relative to "
+          "the grounded link at the corners of each link's bounding box")

@@ -207,3 +207,49 @@ def rigid_dynamics(model: PhysicsModel, gravity: np.ndarray
     speed, accel = spline(model.time_s, 1), spline(model.time_s, 2)
     torque = inertia * accel + 0.5 * np.gradient(inertia, theta) * speed**2 + potential
     return inertia, torque, potential
+
+
+def link_path(model: PhysicsModel, link: int, time_s: np.ndarray) -> np.ndarray:
+    """``T_world_link`` ``(T, 4, 4)`` (mm) of ``link`` at ``time_s`` ``(T,)``: the product of
+    the hinge rotations from the grounded link (still) to ``link`` (each about its home axis,
+    as every body's frame is the world frame at home), the angles a cubic spline of
+    :func:`hinge_angles` over ``model.time_s``: smooth between the prediction's samples and
+    equal to ``link_poses`` at them."""
+    angles = CubicSpline(np.asarray(model.time_s, float), hinge_angles(model), axis=0)(time_s)
+    out = np.broadcast_to(np.eye(4), (len(angles), 4, 4)).copy()
+    by_joint = {h.joint: h for h in model.hinges}
+    for joint in (np.arange(model.grounded_link, model.grounded_link + (link -
+                  model.grounded_link) % 6) % 6):
+        h = by_joint[int(joint)]
+        a, p = np.asarray(h.axis, float), np.asarray(h.point_mm, float)
+        k = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+        th = angles[:, joint, None, None]
+        rot = np.eye(3) + np.sin(th) * k + (1.0 - np.cos(th)) * (k @ k)  # Rodrigues
+        step = np.broadcast_to(np.eye(4), rot.shape[:1] + (4, 4)).copy()
+        step[:, :3, :3], step[:, :3, 3] = rot, p - rot @ p  # about the line through p
+        out = out @ step
+    return out
+
+
+def hand_link(model: PhysicsModel) -> int:
+    """The link a hand holds to turn the loop, the grounded link held too: of the links not
+    next to the grounded one, the one whose two half-chains (the hinges from the grounded
+    link to it, and the rest) stay the most rigid over the prediction. A half-chain between
+    two held links is rigid where its hinges' screws are linearly independent; the measure
+    is the least singular value of the screws ``(axis, moment / size)``, least over the
+    samples and both halves (0: the loop moves there with both links held)."""
+    poses = np.asarray(model.link_poses, float)
+    size = size_mm(model)
+    screws = np.zeros((len(poses), 6, 6))
+    for h in model.hinges:  # hinge j is carried by link j
+        rot, shift = poses[:, h.joint, :3, :3], poses[:, h.joint, :3, 3]
+        axis = rot @ np.asarray(h.axis, float)
+        point = rot @ np.asarray(h.point_mm, float) + shift
+        screws[:, h.joint] = np.concatenate([axis, np.cross(point, axis) / size], axis=-1)
+    g, best = model.grounded_link, {}
+    for k in ((g + 2) % 6, (g + 3) % 6, (g + 4) % 6):
+        half = (np.arange((k - g) % 6) + g) % 6
+        rest = np.setdiff1d(np.arange(6), half)
+        best[k] = min(np.linalg.svd(screws[:, part], compute_uv=False)[:, -1].min()
+                      for part in (half, rest))
+    return max(best, key=lambda k: (best[k], k == (g + 3) % 6))

@@ -313,9 +313,9 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
     if ratio > HOLD_RATIO:
         report["warnings"].append(
             f"in part of its turn the motor's joint moves {ratio:.0f} times slower than the "
-            "fastest joint: a motor cannot hold the loop there (its links swing under gravity "
-            "and the physics check loses it); turn it by hand, or design a smoother motion "
-            "(the smooth-drive criterion)")
+            "fastest joint: a motor cannot hold the loop there (its links swing under "
+            "gravity); turn it by hand, holding the base and a link across the loop (the "
+            "physics check does so), or design a smoother motion (the smooth-drive criterion)")
     tq = report["drive"].get("peak_torque_n_m", plan.torque_nm)
     across = stiffness.across_gravity(asm.joint_factors, list(asm.bars), resting, up)
     defl = stiffness.deflections(plan.deflection.lengths, plan.radii, across,
