@@ -406,3 +406,22 @@ def test_a_loop_no_motor_holds_is_turned_by_the_rigid_hand(monkeypatch):
     assert rigid.hand_link != opposite
     monkeypatch.setattr(physics, "hand_link", lambda _: opposite)
     assert not physics.simulate(model, hand=True).completed
+
+
+def test_studio_card_names_no_motor_torque_for_a_loop_no_motor_holds(tv8_made, monkeypatch):
+    """The *Printed object* card gives the motor's torque where a motor holds the loop and
+    says to turn it by hand where it cannot (the drive report's ratio past HOLD_RATIO)."""
+    from types import SimpleNamespace
+
+    from app.panels import summary as card
+
+    monkeypatch.setattr(card, "hardware_text", lambda r: "screws")
+    r = tv8_made.report
+    report = {**r, "print_layout": {"bed_mm": [250, 250], "plates": 1, "parts": [
+        {"name": "link_0", "fits_bed": True, "support_share": 0.0}]},
+              "parts": [{"mass_g": 5.0}]}
+    parts = SimpleNamespace(report=report, same_loop=True, loop=0, design_loop=0, samples=90)
+    assert "N·m at most on joint" in card.card_text(parts)
+    parts.report = {**report, "drive": {**r["drive"], "worst_speed_ratio": 2 * HOLD_RATIO}}
+    text = card.card_text(parts)
+    assert "N·m at most" not in text and "turn it by hand" in text

@@ -20,6 +20,7 @@ from app.panels.design import handler
 from app.printjob import Parts
 from app.wording import gui_text
 from paraloop_core.fabrication import profiles
+from paraloop_core.linkage.drive import HOLD_RATIO
 
 #: The card before any parts are built.
 WAITING = "*The printed parts are built a moment after the design settles.*"
@@ -102,8 +103,12 @@ def card_text(parts: Parts) -> str:
         total = 1e3 * sum(drive["link_masses_kg"])
         lines.append(f"- **Weight:** {total:.0f} g in all, {plastic:.0f} g of it printed "
                      f"{drive['material']}")
-        lines.append(f"- **Motor:** {drive['peak_torque_n_m']:.2g} N·m at most on joint "
-                     f"{drive['motor']} (turned slowly)")
+        if drive.get("worst_speed_ratio", 0.0) > HOLD_RATIO:
+            lines.append("- **Motor:** none; one motor cannot hold this loop: turn it by hand, "
+                         "holding the base and a link across the loop (see the note)")
+        else:
+            lines.append(f"- **Motor:** {drive['peak_torque_n_m']:.2g} N·m at most on joint "
+                         f"{drive['motor']} (turned slowly)")
     lines += [
         f"- **Stands:** {_stands(r)}",
         "- **Supports:** " + (
