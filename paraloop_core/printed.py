@@ -293,7 +293,7 @@ def physics_check(printed: Printed, opts: Options, settings: DriveSettings,
     rep = physics.simulate(model, quasi_static_peak_nm=quasi, anchored=anchored, hand=hand)
     names = {b.name: f"physics_{b.name}.stl" for b in model.bodies}
     xml = physics.mjcf(model, names, timestep=rep.timestep, anchored=rep.anchored,
-                       servo=None if hand else (rep.servo_kp, rep.servo_kv),
+                       servo=(rep.servo_kp, rep.servo_kv),
                        hand=rep.hand_link)
     files = [("paraloop.xml", xml.encode())]
     files += [(names[b.name], b.mesh.export(file_type="stl")) for b in model.bodies]

@@ -154,8 +154,6 @@ def mjcf(model: PhysicsModel, mesh_names: Mapping[str, str] | None = None, *,
     link held by the hand instead of the motor (module docstring; the base anchored)."""
     tr = tree(model)
     anchored = anchored or hand is not None
-    kp, kv = servo if servo is not None else \
-        servo_gains(float(rigid_dynamics(model, GRAVITY_WORLD)[0].min()), timestep)
     by_name = {b.name: b for b in model.bodies}
     children: dict[str, list[str]] = {}
     for child, parent in tr.parent.items():
@@ -215,10 +213,14 @@ def mjcf(model: PhysicsModel, mesh_names: Mapping[str, str] | None = None, *,
                         f'solref="{_floats(CLOSURE_SOLREF)}" solimp="{_floats(CLOSURE_SOLIMP)}"/>')
         bodies.append('    <body name="hand" mocap="true"/>')
     motor = f"hinge_{model.motor_joint}"
-    actuators = [] if hand is not None else [
-        f'    <motor name="{FEEDFORWARD}" joint="{motor}"/>',
-        f'    <position name="{POSITION}" joint="{motor}" kp="{kp:.9g}"/>',
-        f'    <velocity name="{VELOCITY}" joint="{motor}" kv="{kv:.9g}"/>']
+    actuators = []
+    if hand is None:
+        kp, kv = servo if servo is not None else \
+            servo_gains(float(rigid_dynamics(model, GRAVITY_WORLD)[0].min()), timestep)
+        actuators = [
+            f'    <motor name="{FEEDFORWARD}" joint="{motor}"/>',
+            f'    <position name="{POSITION}" joint="{motor}" kp="{kp:.9g}"/>',
+            f'    <velocity name="{VELOCITY}" joint="{motor}" kv="{kv:.9g}"/>']
     table_z = model.table_z_mm * M_PER_MM
     return "\n".join([
         '<mujoco model="paraloop">',

@@ -69,8 +69,8 @@ from dataclasses import asdict, dataclass
 import mujoco
 import numpy as np
 from scipy.interpolate import CubicSpline
-from scipy.spatial.transform import Rotation
 
+from paraloop_core.algebra import dq
 from paraloop_core.errors import FabricationError
 from paraloop_core.fabrication import mjcf as mjcf_mod
 from paraloop_core.fabrication import physics_measure as measure
@@ -196,11 +196,11 @@ def _simulate(model: PhysicsModel, timestep: float, quasi_static_peak_nm: float 
     times = np.asarray(model.time_s, float)
     inertia, rigid, gravity = rigid_dynamics(model, GRAVITY_WORLD)
     held = hand_link(model) if hand else None
-    servo = mjcf_mod.servo_gains(float(inertia.min()), timestep)  # right when anchored
+    servo = None if hand else mjcf_mod.servo_gains(float(inertia.min()), timestep)
     m = mujoco.MjModel.from_xml_string(mjcf(model, timestep=timestep, anchored=anchored,
                                             servo=servo, hand=held))
     d = mujoco.MjData(m)
-    if not hand:
+    if not hand:  # the gains for the least inertia the motor sees in this model
         servo = mjcf_mod.servo_gains(
             min(float(inertia.min()), _least_inertia(m, d, model, tree)), timestep)
         m = mujoco.MjModel.from_xml_string(mjcf(model, timestep=timestep, anchored=anchored,
@@ -213,7 +213,7 @@ def _simulate(model: PhysicsModel, timestep: float, quasi_static_peak_nm: float 
     if hand:
         ctrl = np.zeros((steps, 0))
         path = link_path(model, held, np.minimum(t_step + HAND_LEAD_S, times[-1]))
-        mocap = (path[:, :3, 3] * M_PER_MM, _wxyz(path[:, :3, :3]))
+        mocap = (path[:, :3, 3] * M_PER_MM, dq.matrix_to_wxyz(path[:, :3, :3]))
     else:
         ctrl = np.stack([np.interp(t_step, times, rigid), ref(t_step)[:, model.motor_joint],
                          ref(t_step, 1)[:, model.motor_joint]], axis=1)
@@ -230,12 +230,8 @@ def _simulate(model: PhysicsModel, timestep: float, quasi_static_peak_nm: float 
     run = _run(m, d, ids, ctrl, steps, mocap)
     return _report(model, tree, run, settled, ref(t_step)[:, model.motor_joint], anchored,
                    timestep, quasi_static_peak_nm, None if hand else float(np.abs(rigid).max()),
-                   None if hand else servo, held, wall, messages)
+                   servo, held, wall, messages)
 
-
-def _wxyz(rot: np.ndarray) -> np.ndarray:
-    """Unit quaternions ``(T, 4)`` (``wxyz``) of rotation matrices ``(T, 3, 3)``."""
-    return Rotation.from_matrix(rot).as_quat()[:, [3, 0, 1, 2]]
 
 
 def _least_inertia(m: mujoco.MjModel, d: mujoco.MjData, model: PhysicsModel,
