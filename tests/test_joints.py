@@ -101,6 +101,80 @@ def test_a_bar_leaving_past_a_boss_gets_a_dowel_in_a_blind_bore(kind, side):
     assert pin(kind, 12.0).kind == kind
 
 
+@pytest.mark.parametrize("side", [0, 1])
+def test_a_rod_without_a_cap_ends_in_a_blind_bore(side):
+    """A grounding rod laid out without its cap (every capped one cut a bar or left a link in
+    pieces): it ends a clearance short of a floor a wall thick in the turning link's bore, so
+    that link cannot slide off its end; it still holds 2 diameters in each boss; the turning
+    link's hole stops at the floor, the grounded link's runs on to the base."""
+    j = joints.layout(0, np.zeros(3), 10 * Z, Z, (np.array([-40.0, 0, 0]),
+                                                   np.array([0, 40.0, 0])), (4.0, 4.0), 6.0,
+                      "rod", GENERIC, eps=0.05, rod=profiles.DEFAULT_ROD, rod_side=side,
+                      cap=False)
+    assert not any(p.printed for p in j.pieces)
+    rod = j.axle
+    d = profiles.DEFAULT_ROD.d_mm
+    assert min(held(j)) >= profiles.ENGAGE_TARGET * d - 1e-9
+    turning = 1 - side
+    tip, face = (rod.s1, j.upper[1]) if turning == 1 else (rod.s0, j.lower[0])
+    assert abs(face - tip) >= GENERIC.wall_mm + GENERIC.clearance_mm - 1e-9
+    hole = csg.manifold(parts.holes(j, bool(turning), 30.0)).bounding_box()
+    end = hole[5] if turning == 1 else hole[2]
+    assert end == pytest.approx(tip + (GENERIC.clearance_mm if turning == 1 else
+                                       -GENERIC.clearance_mm))
+    assert abs(face - end) >= GENERIC.wall_mm - 1e-9  # the floor
+    through = csg.manifold(parts.holes(j, bool(side), 30.0)).bounding_box()
+    assert through[2] < j.lower[0] - 10 and through[5] > j.upper[1] + 10
+
+
+def test_a_joint_in_a_straight_rod_is_a_dowel_in_two_blind_bores():
+    """Both bars leave along the axis past their bosses' outer faces (a joint in the middle of
+    a nearly straight rod): a head and a nut would sit inside both bars. The joint is a dowel
+    glued in link j's blind bore and turning in link j+1's, whose floor stands a clearance
+    past its tip (it keeps link j+1 on): nothing outside either boss, no bar cut, 2 diameters
+    held in each boss, the guide fits it before the loop closes."""
+    from paraloop_core.fabrication import guide
+
+    bars = (np.array([3.0, 0.0, -80.0]), np.array([3.0, 0.0, 80.0]))
+    j = joints.layout(0, np.zeros(3), 12 * Z, Z, bars, (5.0, 5.0), 7.0, "m3", GENERIC,
+                      eps=0.05)
+    assert (j.kind, j.rod_side, j.cut) == ("dowel", 0, (False, False))
+    assert not any(p.printed for p in j.pieces)
+    assert all(j.lower[0] <= p.s0 and p.s1 <= j.upper[1] for p in j.pieces)
+    assert min(held(j)) >= profiles.ENGAGE_TARGET * j.axle_d - 1e-9
+    assert j.upper[1] - j.axle.s1 >= GENERIC.wall_mm + GENERIC.clearance_mm - 1e-9
+    for upper in (False, True):  # both holes blind: a floor a wall thick under each face
+        box = csg.manifold(parts.holes(j, upper, 30.0)).bounding_box()
+        assert (box[5] <= j.upper[1] - GENERIC.wall_mm + 1e-9) if upper else \
+            (box[2] >= j.lower[0] + GENERIC.wall_mm - 1e-9)
+    assert "before the loop is closed" in guide._joint_text(j, 0)
+    # without a rod the loop closes on another joint; with one, on the rod
+    from dataclasses import replace
+
+    ring = [replace(pin("m3"), index=i) for i in range(6)]
+    ring[5] = replace(j, index=5)
+    order = [x.index for x in guide.assembly_order(tuple(ring))]
+    assert sorted(order) == list(range(6)) and order[-1] == 4
+    ring[2] = replace(pin("rod", rod_side=0), index=2)
+    assert [x.index for x in guide.assembly_order(tuple(ring))] == [0, 1, 3, 4, 5, 2]
+
+
+def test_a_bar_cut_across_its_core_is_said():
+    """A bar leaning over the pin into the neighbour's zone past the split is cut across its
+    core there: the layout says so (:func:`joints.cut_sides`; the export then prefers another
+    realization or rod); crossing bars are not cut."""
+    over = (np.array([40.0, 0.0, 60.0]), np.array([0.0, 40.0, 0.0]))
+    j = joints.layout(0, np.zeros(3), 12 * Z, Z, over, (1.0, 5.0), 7.0, "m3", GENERIC,
+                      eps=0.05)
+    assert j.cut == (True, False)
+    # link j's centre line just past the split (where link j+1's zone begins) lies within
+    # the zone cut's radius of the axis
+    s = j.split + j.gap / 2 + 0.1
+    assert s * 40.0 / 60.0 < j.reach + GENERIC.clearance_mm + parts.EPS_MM
+    for kind, side in KINDS:
+        assert pin(kind, 12.0, rod_side=side).cut == (False, False)
+
+
 def test_the_grounded_joint_holds_the_rod():
     asm = F.printed().assembly
     (j,) = [j for j in asm.joints if j.kind == "rod"]

@@ -8,7 +8,7 @@ from hypothesis import given, settings
 
 from paraloop_core.algebra import dq, factor, poly
 from paraloop_core.linkage import loops
-from tests.conftest import random_cubic, seeds
+from tests.conftest import random_cubic, random_rotation_factors, seeds
 
 
 def test_nine_loops_three_angle_symmetric():
@@ -83,3 +83,45 @@ def test_relative_motion_rejects_bad_links():
     jf = np.zeros((6, 8))
     with pytest.raises(ValueError, match="distinct"):
         loops.relative_motion(jf, 2, 2)
+
+
+@settings(max_examples=25, deadline=None)
+@given(seeds)
+def test_cycle_samples_keep_every_joint_turn_small(seed):
+    """:func:`loops.cycle_samples`: sorted parameters in [0, 1) holding the uniform grid, and
+    between two neighbours (round the cycle) no norm factor turns by more than pi / (n // 3)
+    of its angle, however fast the motion passes a factor's root."""
+    rng = np.random.default_rng(seed)
+    h = random_rotation_factors(rng, 3)
+    h[0, :4] *= [1.0, 1e-3, 1e-3, 1e-3]  # a root near the real axis: a fast half turn
+    h[0, 4:] *= 1e-3
+    jf = loops.loop_joint_factors(factor.all_factorizations(poly.from_factors(h)).factors)[0]
+    n = 90
+    u = loops.cycle_samples(jf, n)
+    assert np.all(np.diff(u) > 0) and u[0] >= 0.0 and u[-1] < 1.0
+    assert np.isin(np.arange(n) / n, u).all()
+    t = poly.param_to_t(u)
+    r = np.linalg.norm(jf[:3, 1:4], axis=-1)
+    # each factor's half angle falls from pi (t = -inf, u = 0) to 0 (t = +inf, u -> 1)
+    angle = np.arctan2(r[:, None], t[None] - jf[:3, 0, None])
+    angle[:, ~np.isfinite(t)] = np.pi
+    gaps = np.diff(np.concatenate([angle, np.zeros((3, 1))], axis=1), axis=1)
+    assert np.all(np.abs(gaps) <= np.pi / (n // 3) + 1e-9)
+
+
+def test_cycle_samples_tighten_the_motion_bound_of_a_fast_loop():
+    """Where one joint flips within a sliver of u, uniform samples leave one cell whose sound
+    motion bound spans the whole flip; the cycle samples bound every cell tightly (the base
+    and the verification would otherwise refuse a sound clearance)."""
+    from paraloop_core.realization.motion_bound import chain_displacement_bounds
+
+    rng = np.random.default_rng(7)
+    h = random_rotation_factors(rng, 3)
+    h[0, :4] *= [1.0, 1e-3, 1e-3, 1e-3]
+    h[0, 4:] *= 1e-3
+    jf = loops.loop_joint_factors(factor.all_factorizations(poly.from_factors(h)).factors)[0]
+    uniform = np.arange(360) / 360
+    loose = chain_displacement_bounds(jf, 0, 3, np.zeros(3), 1.0, uniform).max()
+    tight = chain_displacement_bounds(jf, 0, 3, np.zeros(3), 1.0,
+                                      loops.cycle_samples(jf, 360)).max()
+    assert tight < 0.2 * loose

@@ -90,6 +90,35 @@ def test_floor_of_a_blind_bore():
     assert 4.0 - 2 * jp.STEP_MM <= jp.floor(p, np.abs(p.s) <= 6.0) <= 4.0
 
 
+@pytest.mark.parametrize("floor", [None, 2.0])
+def test_a_capless_rod_is_retained_only_by_a_blind_floor(floor):
+    """A grounding rod without its cap ends 8 mm into the turning link's 12 mm boss: with a
+    floor 2 mm thick 0.3 mm past its tip the link cannot slide off (retained); with the
+    bore drilled through, the checker says the link can slide off the rod."""
+    from independent import printed_joints as pj
+
+    boss = trimesh.creation.cylinder(radius=8.0, height=12.0, sections=64)  # s in [-6, 6]
+    top = 6.0 if floor is None else 6.0 - floor
+    bore = trimesh.creation.cylinder(radius=2.2, sections=64, segment=[[0, 0, -7.0], [0, 0, top]])
+    p = jp.profile(boss.difference(bore, engine="manifold"), np.zeros(3),
+                   np.array([0, 0, 1.0]), -9.0, 9.0)
+    jt = {"joint": 0, "kind": "rod",
+          "pieces": [{"role": "rod", "s_mm": [-20.0, top - 0.3], "radius_mm": 2.0,
+                      "printed": False}]}
+
+    class Ex:
+        grounded = 0  # link 0 holds the rod; link 1 turns on it
+
+    out = {"links": [{"link": 0}, {"link": 1}]}
+    fails = pj._blind_retention(Ex(), jt, [None, p], out, 1.2)
+    if floor is None:
+        assert fails and "slide off" in fails[0]
+    else:
+        assert not fails
+        assert floor - 2 * jp.STEP_MM <= out["retention"]["blind_floor_mm"] <= floor
+        assert out["retention"]["floor_past_tip_mm"] <= 0.3 + jp.STEP_MM
+
+
 def test_hex_trap_takes_a_nut_and_stops_it_turning():
     """A 5.8 mm hexagonal pocket takes a 5.5 mm nut with 0.15 mm to spare and blocks it."""
     block = trimesh.creation.box(extents=[20.0, 20.0, 10.0])
@@ -124,6 +153,24 @@ def test_plain_export_passes_the_independent_checks(name, tmp_path):
                              all(str(i) in w for i in lifted) for w in report["warnings"])
     if name == "tv8":  # every link of tv8 lies on its bar's face (its rod link included)
         assert not lifted and not found["failures"]
+
+
+@pytest.mark.parametrize("seed", [62037, 62083])
+def test_random_designs_export_whole_bars_and_a_base_that_stands(seed, tmp_path):
+    """Two random generic designs (``independent.generic_designs``) that once printed badly:
+    62037's first grounding rod put its cap's room across link 3's bar (a crescent where the
+    bar should be; now another rod is taken, the same realization kept); 62083 turns a joint
+    half a turn within a sliver of its cycle, and the base's motion bound over uniform
+    samples refused every rod (now :func:`loops.cycle_samples`: it stands). Exported as the
+    benchmark does, both pass the independent checker, stand, and cut no bar."""
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    import printability
+
+    row = printability.run_one((f"random-{seed}", (seed,)), tmp_path)
+    assert row["outcome"] == "ok" and row["failures"] == [], row
+    report = json.loads((tmp_path / f"random-{seed}" / "report.json").read_text())
+    assert report["base"]["stands"] and report["mount"] is None
+    assert not any(any(j["bar_cut"]) for j in report["joints"])
 
 
 # --- a good export damaged: each damage is reported --------------------------------------------

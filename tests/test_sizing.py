@@ -181,6 +181,11 @@ def test_report_entry_and_the_limiting_pair(bounds):
     thin = int(np.argmin(p.radii))
     assert lim["thinnest_bar_link"] == thin and thin in lim["links"]
     assert lim["room_left_mm"] >= -1e-6  # the plan keeps every row
+    # the consecutive bars on the thin bar's joints count too (two links on one joint)
+    k, r = p.scale, p.radii
+    joint_rows = [k * bounds.joint_lower[i] - r[i] - r[(i + 1) % 6] - p.gaps[i, (i + 1) % 6]
+                  for i in (thin, (thin - 1) % 6) if np.isfinite(bounds.joint_lower[i])]
+    assert lim["room_left_mm"] <= min(joint_rows, default=np.inf) + 1e-9
 
 
 def test_automatic_size_fits_the_bed():

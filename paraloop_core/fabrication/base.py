@@ -276,7 +276,7 @@ def ground(asm: Assembly, density_g_cm3: float, bed_mm: tuple[float, float, floa
     # the required gaps with the sizing's margin: the rod is checked on capsules, like the
     # parts, and should not sit at the limit either
     need = asm.plan.gaps * GAP_MARGIN if need is None else need
-    u = np.arange(SAMPLES) / SAMPLES
+    u = loops.cycle_samples(asm.joint_factors, SAMPLES)
     masses, centers = link_masses(asm, density_g_cm3)
     room = plate_room(bed_mm)
     found = []
@@ -334,7 +334,7 @@ def final(asm: Assembly, b: Base, density_g_cm3: float, samples: int = 720) -> B
     """``b`` with the centre of mass path, margin and ``stands`` measured again on the built
     assembly (its plate, rod, re-laid grounded joint and every piece of hardware included):
     the figures the report gives and the guide trusts."""
-    u = np.arange(samples) / samples
+    u = loops.cycle_samples(asm.joint_factors, samples)
     masses, centers = link_masses(asm, density_g_cm3)
     poses = _mm_poses(asm.joint_factors, asm.scale, b.link, u)
     com = _com(asm, masses, centers, b.link, poses, 0.0, np.zeros(3))

@@ -312,9 +312,7 @@ def verify(asm: Assembly, samples: int = 720, progress: Progress | None = None) 
         return m3d.Manifold.batch_boolean([q.solid for q in groups[link]], m3d.OpType.Add)
 
     jf = asm.joint_factors
-    fast = poly.t_to_param(poly.cycle_parameters(
-        jf[:3, 0], np.linalg.norm(jf[:3, 1:4], axis=-1), max(samples // 3, 8))) % 1.0
-    u0 = np.unique(np.concatenate([np.arange(samples) / samples, fast]))
+    u0 = loops.cycle_samples(jf, samples)
     need = asm.plan.gaps
     pairs_out, joint_gaps = [], []
     for k, (a, b) in enumerate(itertools.combinations(range(6), 2)):

@@ -30,6 +30,14 @@ def _joint_text(j, first: int) -> str:
         return (f"Joint {a} joins link {a} and link {b}: push the printed pin_{a} through "
                 f"link {a} (head side) and link {b}, then press the printed pin cap onto its "
                 "end (a drop of glue if it is loose). The joint must turn freely.")
+    if kind == "dowel" and _enclosed(j):
+        fixed = j.fixed_link
+        free = b if fixed == a else a
+        return (f"Joint {a} joins link {a} and link {b} on a {j.axle_d:g} mm steel dowel: "
+                "both bars run on along this joint's axis, so nothing sits outside the bosses. "
+                f"Glue the dowel into the blind bore of link {fixed} (to its floor), then slide "
+                f"link {free}'s blind bore onto it (no glue): its floor keeps link {free} on. "
+                "Fit this joint before the loop is closed.")
     if kind == "dowel":
         fixed = j.fixed_link
         free = b if fixed == a else a
@@ -38,9 +46,32 @@ def _joint_text(j, first: int) -> str:
                 f"into the blind bore of link {fixed} (to its floor), slide link {free} on, "
                 "then glue the printed dowel cap onto the dowel's end, leaving the joint free "
                 f"to turn (no glue on link {free}).")
+    if _enclosed(j):
+        return (f"Joint {a} joins link {a} and link {b} on the rod (the grounding column): "
+                f"push the rod through link {first}'s boss (the grounded link) into the other "
+                "link's blind bore until it stops, draw it back half a millimetre and glue it "
+                f"in link {first} only; the bore's floor keeps the other link on.")
     return (f"Joint {a} joins link {a} and link {b} on the rod (the grounding column): glue "
             f"the rod into link {first}'s boss (the grounded link), slide the other link on, "
             "then glue the rod cap onto the rod's end, leaving the joint free to turn.")
+
+
+def assembly_order(joints: tuple) -> list:
+    """The joints in the order they are fitted: a chain, the rod's last. The last closes the
+    loop, and a dowel in two blind bores cannot be fitted then (the links would have to
+    slide along its axis): without a rod the chain ends on another joint."""
+    chain = [j for j in joints if j.kind != "rod"]
+    if not any(j.kind == "rod" for j in joints):
+        open_ = [k for k, j in enumerate(chain) if not (j.kind == "dowel" and _enclosed(j))]
+        last = open_[-1] if open_ else len(chain) - 1
+        chain = chain[last + 1:] + chain[:last + 1]
+    return chain + [j for j in joints if j.kind == "rod"]
+
+
+def _enclosed(j) -> bool:
+    """Whether a rod or dowel joint has no cap: its axle ends in the turning link's blind
+    bore (:func:`joints.layout`)."""
+    return j.kind in ("rod", "dowel") and not any(p.printed for p in j.pieces)
 
 
 def guide_text(asm, report: dict, material: profiles.Material, pictures: dict[str, str]
@@ -72,8 +103,7 @@ def guide_text(asm, report: dict, material: profiles.Material, pictures: dict[st
                        f"{d['peak_torque_n_m']:.2f} N m against gravity.")
     steps = []
     grounded = None if b is None else b["grounded_link"]
-    order = [j for j in asm.joints if j.kind != "rod"] + [j for j in asm.joints
-                                                          if j.kind == "rod"]
+    order = assembly_order(asm.joints)
     for k, j in enumerate(order):
         text = _joint_text(j, grounded or 0)
         if k == len(order) - 1 and j.kind != "rod":

@@ -23,12 +23,14 @@ Joint j (axis ``A_j``) joins link j (its bar ends at ``E_j``) and link j+1 (its 
   past its boss's outer face, :func:`blocked_sides`: the head or nut would sit inside that
   bar): a steel dowel (the screw's diameter) glued into a blind bore of that link's boss (its
   floor keeps a wall, so the bar goes on whole), turning in the other link's bore, held by a
-  printed cap glued on its end outside the other boss;
+  printed cap glued on its end outside the other boss; where both bars leave past their
+  bosses' outer faces, the other link's bore is blind too, its floor a clearance past the
+  dowel's tip (it keeps that link on; the guide fits this joint before the loop closes);
 * kind ``rod``: the grounded joint: the grounding rod is the axle, fixed (press fit, glued) in
   the grounded link's boss, turning in the other link's boss, held by a printed cap glued on
-  its end (or, where the other link's bar leaves past that end, ending inside the boss: the
-  closed loop keeps a joint from sliding along its axis); beyond the grounded link's boss it
-  goes on down to the base (:mod:`base`).
+  its end (or, where the cap's room would cut the other link's bar, ending in a blind bore
+  of that link whose floor keeps it on); beyond the grounded link's boss it goes on down to
+  the base (:mod:`base`).
 
 Every piece is a solid of revolution about the axis (the nut by its corner cylinder), so
 between the two links of a joint nothing changes with the joint angle, and against any other
@@ -37,7 +39,7 @@ link the joint's hardware moves as either of its two links does.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -101,6 +103,9 @@ class Joint:
     #: kinds ``rod`` and ``dowel``: the side whose link holds the axle fixed (0: link j,
     #: 1: link j+1); the grounding rod leaves to the base past that link's boss
     rod_side: int | None = None
+    #: whether link j's bar (0) and link j+1's (1) are cut across their centre line here
+    #: (:func:`cut_sides`): a crescent where a bar should be, to be avoided where it can be
+    cut: tuple[bool, bool] = (False, False)
 
     def at(self, s: float | np.ndarray) -> np.ndarray:
         """Points ``(..., 3)`` at axial coordinates ``s``."""
@@ -200,6 +205,27 @@ def blocked_sides(bars: tuple[np.ndarray, np.ndarray], w: np.ndarray,
             outward(bars[1], w, 0.0, within) > faces[1] + 0.5)
 
 
+def cut_sides(j: Joint, bars: tuple[np.ndarray, np.ndarray], c: float, eps: float
+              ) -> tuple[bool, bool]:
+    """Whether the centre line of link j's bar (``bars[0]``, from ``E_j``) and of link
+    j+1's (``bars[1]``, from ``S_{j+1}``) is cut at joint ``j``: by the neighbour's zone
+    (:func:`parts.zone_cut`: within ``reach + c + eps`` of the axis past the split; a bar
+    leaning over the pin that the split could not keep on its side) or by the room for a
+    piece standing out past its own boss's outer face (a head, nut, washer or cap inside a
+    bar that leaves that way)."""
+    zone = j.reach + c + eps
+    core = (outward(bars[0], j.w, 0.0, zone) + j.gap / 2 > j.split + 1e-9,
+            j.length - outward(bars[1], -j.w, 0.0, zone) - j.gap / 2 < j.split - 1e-9)
+    out = []
+    for k, (face, sign) in enumerate(((j.lower[0], -1.0), (j.upper[1], 1.0))):
+        past = [p.radius for p in j.pieces if (p.s0 < face - 1e-9 if k == 0 else
+                                               p.s1 > face + 1e-9)]
+        within = max(past, default=0.0) + SEAT_MM + eps
+        out.append(bool(past) and outward(bars[k], sign * j.w, 0.0, within) >
+                   sign * (face - (0.0 if k == 0 else j.length)) + 0.5)
+    return core[0] or out[0], core[1] or out[1]
+
+
 def split_point(length: float, lower: np.ndarray, upper: np.ndarray, w: np.ndarray,
                 radii: tuple[float, float], boss: float, gap: float, eps: float
                 ) -> tuple[float, tuple[float, float]]:
@@ -258,15 +284,21 @@ def layout(index: int, origin: np.ndarray, far: np.ndarray, axis: np.ndarray,
     if kind in profiles.FASTENERS:
         blocked = blocked_sides(bars, w, (o_lo, o_up),
                                 fastener_of(kind).reach_r_mm + SEAT_MM + eps)
-        if sum(blocked) == 1:  # the head or nut would sit inside that bar: a dowel instead
-            kind, rod_side, cap = "dowel", blocked.index(True), True
+        if any(blocked):  # the head or nut would sit inside that bar: a dowel instead,
+            # capped past the other link; where both bars run on (a joint in the middle of
+            # a nearly straight rod), blind in both: nothing sits outside either boss
+            kind, rod_side, cap = "dowel", blocked.index(True), not all(blocked)
             gap = printer.clearance_mm
-    # a dowel's blind bore leaves a floor of a wall under the fixed link's outer face
-    floor = printer.wall_mm + BOSS_ROOM_MM if kind == "dowel" else 0.0
+    # a dowel's blind bore leaves a floor of a wall under the fixed link's outer face; an
+    # axle without a cap ends in a blind bore of the turning link, its floor past the tip
+    floor = printer.wall_mm + BOSS_ROOM_MM if kind == "dowel" or not cap else 0.0
     fixed = rod_side or 0
-    if kind == "dowel":
+    if kind == "dowel" or not cap:
+        # the turning link's floor stands the clearance off the axle's tip
+        own = floor if kind == "dowel" else 0.0
+        free = 0.0 if cap else floor + printer.clearance_mm
         m, notch, o_lo, o_up = _bosses(length, bars, w, radii, boss, gap, eps, d,
-                                       (floor, 0.0) if fixed == 0 else (0.0, floor))
+                                       (own, free) if fixed == 0 else (free, own))
     s0, s3 = -o_lo, length + o_up
     screw, pieces = None, []
     c = printer.clearance_mm
@@ -294,9 +326,11 @@ def layout(index: int, origin: np.ndarray, far: np.ndarray, axis: np.ndarray,
             deep = DOWEL_IN_CAP_MM
             height = deep + printer.wall_mm + DOWEL_CAP_ROOM_MM
             a0, a3 = (s0 + floor, s3) if fixed == 0 else (s0, s3 - floor)
-        if not cap:  # the rod ends 1 mm inside the free boss; the closed loop holds it there
-            pieces = [Piece(a0, a3 - 1.0, d / 2, "rod") if fixed == 0 else
-                      Piece(a0 + 1.0, a3, d / 2, "rod")]
+        if not cap:  # the axle ends in the turning link's blind bore: the bore's floor, a
+            # clearance past its tip, keeps that link on as the fixed link's face does from
+            # the other side
+            pieces = [Piece(a0, a3 - floor - c, d / 2, kind) if fixed == 0 else
+                      Piece(a0 + floor + c, a3, d / 2, kind)]
         elif fixed == 0:
             pieces = [Piece(s3 + c, s3 + c + height, head, f"{kind} cap", printed=True),
                       Piece(a0, s3 + c + deep, d / 2, kind)]
@@ -305,9 +339,10 @@ def layout(index: int, origin: np.ndarray, far: np.ndarray, axis: np.ndarray,
                       Piece(s0 - c - deep, a3, d / 2, kind)]
     held = kind in ("rod", "dowel")
     bores = tuple(bore_radius(kind, printer, rod, held and fixed == k, d) for k in (0, 1))
-    return Joint(index, kind, origin, w, length, m, gap, float(boss), (s0, m - gap / 2),
-                 (m + gap / 2, s3), bores, tuple(pieces), d, screw, notch,
-                 fixed if held else None)
+    j = Joint(index, kind, origin, w, length, m, gap, float(boss), (s0, m - gap / 2),
+              (m + gap / 2, s3), bores, tuple(pieces), d, screw, notch,
+              fixed if held else None)
+    return replace(j, cut=cut_sides(j, bars, c, eps))
 
 
 def _screw_pieces(index: int, f: Fastener, s0: float, s3: float, m: float, gap: float
@@ -360,7 +395,8 @@ def to_dict(j: Joint) -> dict:
             "bosses_mm": [list(j.lower), list(j.upper)], "bore_radius_mm": list(j.bore),
             "engagement_mm": list(j.engagement),
             "engagement_diameters": [e / j.axle_d for e in j.engagement],
-            "notch_mm": list(j.notch), "origin_mm": j.origin.tolist(), "axis": j.w.tolist(),
+            "notch_mm": list(j.notch), "bar_cut": list(j.cut), "origin_mm": j.origin.tolist(),
+            "axis": j.w.tolist(),
             # rod and dowel: the link that holds the axle fixed (glued or pressed in)
             "fixed_link": j.fixed_link,
             "pieces": [{"role": p.role, "s_mm": [p.s0, p.s1], "radius_mm": p.radius,

@@ -11,9 +11,9 @@ made by the caller, which knows the design) and
    shrinking the size if a built part does not fit the bed;
 3. grounds it (:mod:`base`): a rod and a plate on which it stands over the whole cycle, the
    grounded joint re-laid for the rod; where a link of it would print over supports (its bar
-   too thin for a flat that keeps its bores' walls) or its rod has no cap, the next sized
-   candidates are built too and the one with the fewest such defects is taken (a base
-   first);
+   too thin for a flat that keeps its bores' walls) or a bar is cut across its core at a
+   joint, the next sized candidates are built too and the one with the fewest such defects
+   is taken (a base first);
 4. verifies the parts over the continuous cycle (:mod:`check`), measures walls, support,
    stiffness (:mod:`stiffness`) and the motor torque of the real masses.
 
@@ -102,10 +102,27 @@ def stage(progress: Progress | None, lo: float, hi: float) -> Progress | None:
     return lambda f, msg: progress(lo + (hi - lo) * f, msg)
 
 
+def _cut(layouts: Iterable[joints.Joint]) -> bool:
+    """Whether a joint of ``layouts`` cuts a bar across its centre line
+    (:func:`joints.cut_sides`)."""
+    return any(any(j.cut) for j in layouts)
+
+
+def _cut_words(layouts: Iterable[joints.Joint]) -> str:
+    """Which bars a joint cuts across their centre line (:func:`joints.cut_sides`), in words."""
+    return "; ".join(f"the bar of link {(j.index + k) % 6} is cut across its core at joint "
+                     f"{j.index} (it runs close along the axis into the room of the "
+                     "neighbour's boss or of the joint's hardware)"
+                     for j in layouts for k in (0, 1) if j.cut[k])
+
+
 def _score(plan: sizing.Plan) -> tuple:
+    # a bar cut across its core or thinner than the floors is what a maker sees first; then
+    # the level, the joints, the size
     kinds = profiles.AUTO_JOINTS
     rank = -kinds.index(plan.kind) if plan.kind in kinds else 0
-    return (-plan.level, rank, round(plan.size_mm, 0), float(plan.radii.min()))
+    flaws = int(_cut(plan.layouts)) + int(plan.level >= 3)
+    return (-flaws, -plan.level, rank, round(plan.size_mm, 0), float(plan.radii.min()))
 
 
 def _plan(real: Realization, opts: Options, size_mm: float | None = None,
@@ -162,7 +179,8 @@ def choose(candidates: Iterable[Candidate], opts: Options, progress: Progress | 
                      + ("" if plan.aims_met else f" ({sizing.LEVELS[plan.level]})"))
         sized.append((cand, real, ee, plan))
         lifted.append(_lifted_by_plan(real, plan, opts))
-        enough = sum(c[3].aims_met for c in sized) >= (1 if opts.size_mm is not None else 2) \
+        enough = sum(c[3].aims_met and not _cut(c[3].layouts) for c in sized) >= \
+            (1 if opts.size_mm is not None else 2) \
             or len(sized) >= ENOUGH_SIZED
         # two that meet the aims (the design's loop first) are enough to choose from, unless
         # each would print a link over supports: then a few more
@@ -233,7 +251,7 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
     ranked, tried = choose(candidates, opts, stage(progress, 0.0, 0.25))
     if progress is not None:
         progress(0.25, "building the parts")
-    # the best candidate that builds and stands on its base, its rod capped and its links
+    # the best candidate that builds and stands on its base, no bar cut and its links
     # all flat on the bed; else the built one on a base with the fewest defects, standing
     # first (_built_score)
     built, error, handed = [], None, []
@@ -263,16 +281,16 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
         built.append(x)
         if _accepted(asm, b, opts):
             break
-        lifted, capless = _lifted(asm), _capless(asm)
+        lifted = _lifted(asm)
         if b is None and opts.ground:
             tried.append(f"{cand.label}: no grounding rod clears its moving links")
         elif b is not None and not b.stands:
             tried.append(f"{cand.label}: its plate does not keep the centre of mass inside")
-        if capless:
-            tried.append(f"{cand.label}: no capped grounding rod leaves its links whole")
         if lifted:
             tried.append(f"{cand.label}: link{'s' * (len(lifted) > 1)} "
                          f"{', '.join(map(str, lifted))} would print over supports")
+        if _cut(asm.joints):
+            tried.append(f"{cand.label}: {_cut_words(asm.joints)}")
     if not built:
         raise error
     x = max(built, key=lambda x: _built_score(x, opts.ground))
@@ -287,6 +305,9 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
                         f"{', '.join(map(str, lifted))} cannot lie on the bar's face without "
                         "breaking into a bore: printed standing on the bosses' cut faces, the "
                         "bar over supports")
+    if _cut(asm.joints):
+        warnings.append(f"{_cut_words(asm.joints)}: a crescent is left of it there (no "
+                        "realization tried avoids this)")
     report = {
         "choice": {"realization": cand.label, "loop": cand.loop, "tried": tried,
                    "radius": real.radius, "separation": real.separation},
@@ -330,9 +351,9 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
 
 def _accepted(asm: Assembly, b: base.Base | None, opts: Options) -> bool:
     """Whether a built candidate is taken at once: standing on its base (or no grounding
-    asked for), its rod capped, no link over supports."""
+    asked for), no link over supports, no bar cut across its core."""
     return bool((b is not None and b.stands or not opts.ground) and not _lifted(asm)
-                and not _capless(asm))
+                and not _cut(asm.joints))
 
 
 class _Built(NamedTuple):
@@ -386,11 +407,12 @@ def _settled(x: _Built, opts: Options, progress: Progress | None, tried: list[st
 def _built_score(x: _Built, ground: bool) -> tuple:
     """Rank of a built candidate of :func:`make` (larger is better; ``max`` keeps the earlier,
     better sized, of equals): on a base (when grounding is asked for), then the fewest
-    defects a maker would meet: a grounding rod without its cap, links printed over
-    supports, bars thinner than the floors (:data:`sizing.LEVELS`' last level); then standing
-    on its plate (else screwed down: the report's ``mount``)."""
+    defects a maker would meet: links printed over supports, bars thinner than the floors
+    (:data:`sizing.LEVELS`' last level), a bar cut across its core at a joint
+    (:func:`joints.cut_sides`); then standing on its plate (else screwed down: the report's
+    ``mount``). A grounding rod without its cap is none: it ends in a blind bore."""
     plan, asm, b = x.plan, x.asm, x.base
-    defects = int(_capless(asm)) + int(bool(_lifted(asm))) + int(plan.level >= 3)
+    defects = int(bool(_lifted(asm))) + int(plan.level >= 3) + int(_cut(asm.joints))
     return (b is not None or not ground, -defects, b is not None and b.stands)
 
 
@@ -403,10 +425,3 @@ def _lifted(asm: Assembly) -> list[int]:
 def _keeled(asm: Assembly) -> list[int]:
     """The links lying on a keel (:func:`parts.keeled`)."""
     return [i for i in range(6) if asm.links[i].keel_mm]
-
-
-def _capless(asm: Assembly) -> bool:
-    """Whether the grounding rod has no printed cap keeping its moving link on (every capped
-    rod left a link in pieces: :func:`stand.ground`'s fallback)."""
-    return any(j.kind == "rod" and not any(p.role == "rod cap" for p in j.pieces)
-               for j in asm.joints)

@@ -363,13 +363,22 @@ def limiting(plan: Plan, b: Bounds) -> dict:
             use += plan.radii[e // 2] if e % 2 == 0 else plan.boss[e // 2] + env[e // 2, 0]
         room = k * low - use - plan.gaps[la, lb]
         if best is None or room < best[0]:
-            best = (room, int(la), int(lb), k * low)
+            best = (room, int(la), int(lb), k * low, None)
+    # the bars of two links on one joint pass each other as it turns (often the tightest)
+    for i in range(6):
+        j = (i + 1) % 6
+        if thin in (i, j) and np.isfinite(b.joint_lower[i]):
+            room = k * b.joint_lower[i] - plan.radii[i] - plan.radii[j] - plan.gaps[i, j]
+            if best is None or room < best[0]:
+                best = (room, i, j, k * b.joint_lower[i], i)
     if best is None:
         return {}
     return {"links": [best[1], best[2]], "thinnest_bar_link": thin,
-            "certified_distance_mm": best[3], "room_left_mm": best[0],
+            "certified_distance_mm": best[3], "room_left_mm": best[0], "joint": best[4],
             "meaning": "the pair of links whose certified distance over the cycle, less the "
-                       "other's bar or joint and the gap they keep, limits the thinnest bar"}
+                       "other's bar or joint and the gap they keep, limits the thinnest bar "
+                       "(joint: the two links' common joint, where their bars pass each other "
+                       "as it turns; null: links without a common joint)"}
 
 
 def to_dict(plan: Plan, printer: Printer, b: Bounds | None = None) -> dict:

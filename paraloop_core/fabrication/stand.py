@@ -1,11 +1,13 @@
 """The loop on its stand: the grounded joint re-laid on a steel rod whose foot is held by the
-base plate (:mod:`base`), the rod's printed cap keeping the moving link on, the plate grown
-for the built parts' centre of mass.
+base plate (:mod:`base`), the rod's printed cap keeping the moving link on (or, without the
+cap, the floor of that link's blind bore past the rod's tip), the plate grown for the built
+parts' centre of mass.
 
 :func:`ground` ranks the rods :func:`base.ground` finds (best first), tries the stock rods
 whose bore leaves both grounded links a print flat (:func:`rods`), and keeps the first whose
 two links still build whole and lie flat; without the cap only where no rod and side holds
-one; the assembly unchanged, with :data:`NO_BASE`, where no rod clears the moving links.
+one (nor cuts a bar); the assembly unchanged, with :data:`NO_BASE`, where no rod clears the
+moving links.
 """
 
 from __future__ import annotations
@@ -56,9 +58,11 @@ def ground(asm: Assembly, opts: Options) -> tuple[Assembly, base.Base | None, li
                             f"{ranked[0].link} instead")
         ranked = mine or ranked
     # best first: both links flat with the rod's cap, the cap on support, flat without the
-    # cap (the closed loop holds the joint), neither; without the cap only where no rod and
-    # side holds one
+    # cap (a blind bore's floor holds the turning link), neither; without the cap only where
+    # no rod and side holds one; a rod whose cap's room cuts across a bar
+    # (:func:`joints.cut_sides`) only where no other holds
     tries = [(b, rod) for b in ranked[:GROUND_TRIES] for rod in rods(asm, b, opts)]
+    cut = None
     for cap in (True, False):
         fallback = None
         for b, rod in tries:
@@ -68,11 +72,16 @@ def ground(asm: Assembly, opts: Options) -> tuple[Assembly, base.Base | None, li
                 if exc.reason not in ("falls-apart", "bad-parameters", "not-watertight"):
                     raise
                 continue
+            if any(grounded[0].joints[b.joint].cut):
+                cut = cut or grounded  # make() names the bar
+                continue
             if all(flat.lies_flat(grounded[0].slack[i]) for i in (b.joint, (b.joint + 1) % 6)):
                 return (*grounded, warnings)
             fallback = fallback or grounded  # make() names the links not flat
         if fallback is not None:
             return (*fallback, warnings)
+    if cut is not None:
+        return (*cut, warnings)
     return asm, None, warnings + [NO_BASE]
 
 

@@ -76,6 +76,18 @@ def norm_roots(joint_factors: np.ndarray) -> np.ndarray:
     return h[..., 0] + 1j * np.linalg.norm(h[..., 1:4], axis=-1)
 
 
+def cycle_samples(joint_factors: np.ndarray, samples: int) -> np.ndarray:
+    """Sorted parameters ``u`` in ``[0, 1)`` covering the cycle: ``samples`` uniform in u and
+    ``samples // 3`` (at least 8) per norm factor uniform in its rotation angle
+    (:func:`poly.cycle_parameters`). Where the motion passes near a singular pose a joint
+    turns half a turn within a tiny stretch of u; uniform samples alone leave one cell there
+    whose motion bound spans the whole flip (hundreds of mm of slack for a sound check)."""
+    h = np.asarray(joint_factors, dtype=np.float64)[:3]
+    fast = poly.t_to_param(poly.cycle_parameters(
+        h[:, 0], np.linalg.norm(h[:, 1:4], axis=-1), max(samples // 3, 8))) % 1.0
+    return np.unique(np.concatenate([np.arange(samples) / samples, fast]))
+
+
 def _linear_pose(h: np.ndarray, t: np.ndarray) -> np.ndarray:
     """Homogeneous pose of ``t - h`` at ``t`` ``(T,)``: ``(..., T, 8)``; identity at inf."""
     return poly.evaluate_pose(poly.linear(h)[..., None, :, :], t)

@@ -39,8 +39,11 @@ MAX_LENGTH_PER_WIDTH = 30.0
 STATIONS = np.linspace(0.2, 0.8, 25)
 #: Largest gap (mm) between a joint axis moved by its two links over the cycle: a micrometre,
 #: a hundredth of what a print resolves and 1e5 times below the gap a wrong loop shows
-#: (64 - 237 mm); near a singular pose float64 readings of a sound loop part by 1e-4 mm.
-CLOSURE_TOL_MM = 1e-3
+#: (64 - 237 mm); near a singular pose float64 readings of a sound loop part by 1e-4 mm,
+#: and on a motion passing very near one (random design 62142, 296 mm, whose motor joint
+#: nearly stops) by 1.06e-3 mm: the tolerance grows to CLOSURE_REL of the loop's size (3 um
+#: at 300 mm, still 2e4 times below a wrong loop's gap).
+CLOSURE_TOL_MM, CLOSURE_REL = 1e-3, 1e-5
 
 
 def _in_boss(ex: Export, link: int, x: np.ndarray) -> bool:
@@ -99,7 +102,8 @@ def check_export(folder: str | Path, collisions: bool = True) -> dict:
     warns: list[str] = []
     gap = closure_error(ex, parameters(ex.jf, 500))
     figures["closure_mm"] = gap
-    if not gap < CLOSURE_TOL_MM:
+    size = float(np.max(np.ptp(ex.points_mm, axis=0)))
+    if not gap < max(CLOSURE_TOL_MM, CLOSURE_REL * size):
         fails.append(f"result.json: the loop's joint axes part by {gap:.3g} mm over the cycle")
     figures["bars"], f = check_bars(ex)
     fails += f

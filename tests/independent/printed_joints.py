@@ -25,6 +25,9 @@ ENGAGE_FACTOR = 1.5
 PITCH_SHARE = 0.16
 #: Least length (mm) of the rod inside its printed cap.
 ROD_IN_CAP_MM = 2.0
+#: Farthest (mm) a capless rod's blind floor may stand past the rod's tip: the printer's
+#: clearance and a station of the profile, with room to spare; farther, the link slides.
+TIP_PLAY_MM = 1.0
 #: How far past the bosses the profiles are measured (mm).
 SCAN_MARGIN_MM = 3.0
 
@@ -183,6 +186,8 @@ def _rod_retention(ex, jt: dict, prof: list, origin, axis, out: dict, wall_mm: f
     caps = _pieces(jt, "cap")
     rods = _pieces(jt, kind)
     name = f"{kind}_cap_{j}"
+    if not caps:
+        return _blind_retention(ex, jt, prof, out, wall_mm)
     if not caps or not (ex.folder / f"{name}.stl").exists():
         return [f"joint {j}: {kind} joint without its printed cap ({name}.stl)"]
     cap, rod = caps[0], [p for p in rods if p["role"] == kind][0]
@@ -219,6 +224,35 @@ def _rod_retention(ex, jt: dict, prof: list, origin, axis, out: dict, wall_mm: f
         fails.append(f"joint {j}: the cap does not cover link {out['links'][turning]['link']}'s "
                      f"bore (the link can slide off the {kind})")
     return fails
+
+
+def _blind_retention(ex, jt: dict, prof: list, out: dict, wall_mm: float) -> list[str]:
+    """A grounding rod or dowel without a cap: the turning link's bore must be blind, its
+    floor (at least a wall thick, on the axis) at most :data:`TIP_PLAY_MM` past the axle's
+    tip, so the link cannot slide off its end (the holding link's boss stops it the other
+    way). The holder: the grounded link for a rod, ``fixed_link`` for a dowel."""
+    j, kind = jt["joint"], jt["kind"]
+    holder = ex.grounded if kind == "rod" else jt.get("fixed_link")
+    if holder not in (j, (j + 1) % 6):
+        return [f"joint {j}: the {kind} joint is not a joint of the link holding it"]
+    turning = 0 if holder == (j + 1) % 6 else 1
+    rod = [p for p in _pieces(jt, kind) if p["role"] == kind][0]
+    s0, s1 = rod["s_mm"]
+    p = prof[turning]
+    tip, sign = (s1, 1.0) if turning == 1 else (s0, -1.0)  # the rod ends inside that link
+    beyond = sign * (p.s - tip)
+    solid = p.inside & (beyond > 0)
+    first = float(beyond[solid].min()) if solid.any() else np.inf
+    start = int(np.flatnonzero(solid & (beyond == first))[0]) if solid.any() else -1
+    runs = [(a, b) for a, b in jp.runs_of(p.inside) if a <= start <= b]
+    floor = (runs[0][1] - runs[0][0]) * jp.STEP_MM if runs else 0.0  # a lower bound
+    out["retention"] = {"blind_floor_mm": floor, "floor_past_tip_mm": first,
+                        "turning_link": out["links"][turning]["link"]}
+    if not first <= TIP_PLAY_MM or not floor >= wall_mm + RESOLUTION_MM:
+        return [f"joint {j}: {kind} joint without its printed cap and without a blind bore in "
+                f"link {out['links'][turning]['link']} past its tip (floor {floor:.2f} mm, "
+                f"{first:.2f} mm past the tip): the link can slide off the {kind}"]
+    return []
 
 
 def check_bom(report: dict) -> list[str]:
