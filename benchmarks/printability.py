@@ -56,7 +56,8 @@ def run_one(item: tuple[str, object], check: Path | None = None) -> dict:
             "size_mm": rep["sizing"]["size_mm"], "width_mm": min(rep["sizing"]["bar_width_mm"]),
             "lw": max(s["length_per_width"] for s in stiff),
             "sag_mm": max(s["sag_mm"] for s in stiff),
-            "torque_mm": max(s["torque_deflection_mm"] for s in stiff), "engage": eng,
+            "torque_mm": max((s["torque_deflection_mm"] or 0.0) for s in stiff),
+            "hand": stiff[0]["torque_deflection_mm"] is None, "engage": eng,
             "stands": None if b is None else b["stands"],
             "margin": None if b is None else b["com_margin_share"],
             "support": max(p["support_share"] for p in rep["print_layout"]["parts"]),
@@ -81,7 +82,8 @@ def describe(r: dict) -> str:
     base = "-" if r["stands"] is None else ("stands" if r["stands"] else "mount")
     margin = "" if r["margin"] is None else f" ({100 * r['margin']:.0f} %)"
     return (f" {r['size_mm']:.0f} mm, bars >= {r['width_mm']:.1f} mm, L/W <= {r['lw']:.0f}, "
-            f"sag {r['sag_mm']:.2f} / torque {r['torque_mm']:.2f} mm, engage "
+            f"sag {r['sag_mm']:.2f} / " + ("by hand" if r["hand"] else
+                                           f"torque {r['torque_mm']:.2f} mm") + ", engage "
             f"{r['engage']:.1f} d, base {base}{margin}, support {100 * r['support']:.0f} %, "
             f"gap {r['min_gap_mm']:.1f} mm, {r['plates']} plates"
             + ("" if meets(r) else "  << short of the criteria")

@@ -396,6 +396,10 @@ def test_a_loop_no_motor_holds_is_turned_by_the_rigid_hand(monkeypatch):
     design = design_mod.design_from_dict(random_design(62009))
     made, _ = printed.make(pipeline.solve(design), printable.Options(samples=8))
     assert made.report["drive"]["worst_speed_ratio"] > HOLD_RATIO
+    # turned by hand: no motor torque bends a bar (the report says so, sag only)
+    stiff = made.report["stiffness"]
+    assert stiff["motor_torque_nm"] is None
+    assert all(e["torque_deflection_mm"] is None and e["sag_mm"] >= 0 for e in stiff["links"])
     model = physics_assembly.model_from_assembly(made.assembly, profiles.MATERIALS["pla"],
                                                  design.drive)
     motor = physics.simulate(model, anchored=True)
@@ -417,6 +421,7 @@ def test_studio_card_names_no_motor_torque_for_a_loop_no_motor_holds(tv8_made, m
 
     monkeypatch.setattr(card, "hardware_text", lambda r: "screws")
     r = tv8_made.report
+    assert all(e["torque_deflection_mm"] > 0 for e in r["stiffness"]["links"])  # a motor
     report = {**r, "print_layout": {"bed_mm": [250, 250], "plates": 1, "parts": [
         {"name": "link_0", "fits_bed": True, "support_share": 0.0}]},
               "parts": [{"mass_g": 5.0}]}

@@ -132,8 +132,16 @@ def test_hex_trap_takes_a_nut_and_stops_it_turning():
 
 # --- the five examples, exported as a maker would -------------------------------------------
 
-@pytest.mark.parametrize("name", [pytest.param(n, marks=() if n == "tv8" else pytest.mark.slow)
-                                  for n in EXAMPLES])
+#: The example whose plain export still misses a criterion (issue 26 open): its link 3 carries
+#: a curved panel with bars standing 150 mm out of it, which no face lays flat (36 % of its
+#: downward area over support; the report warns).
+KNOWN_SHORT = {"shading-panel": "link 3 with its curved panel needs support"}
+
+
+@pytest.mark.parametrize("name", [pytest.param(
+    n, marks=(() if n == "tv8" else (pytest.mark.slow,)) + (
+        (pytest.mark.xfail(reason=KNOWN_SHORT[n], strict=True),) if n in KNOWN_SHORT else ()))
+    for n in EXAMPLES])
 def test_plain_export_passes_the_independent_checks(name, tmp_path):
     out = tmp_path / name
     run = subprocess.run([sys.executable, "-m", "app.cli.main", "export",

@@ -314,7 +314,12 @@ def ground(asm: Assembly, density_g_cm3: float, bed_mm: tuple[float, float, floa
             stands = radius <= room
             if stands or t == THICKNESS_MM[-1]:
                 break
-        radius = min(radius, room)
+        if radius > room:  # the bed's plate, moved as little as keeps the socket on it
+            radius = room
+            off = center - foot
+            hold = radius - socket_r - 2.0
+            if float(np.linalg.norm(off)) > hold:
+                center = foot + off * (hold / float(np.linalg.norm(off)))
         inside = radius - float(np.linalg.norm(com2 - center, axis=1).max()) - step
         stands = bool(stands and inside >= MARGIN * 2 * radius * 0.999)
         tilt = float(np.degrees(np.arccos(np.clip(up[2], -1.0, 1.0))))

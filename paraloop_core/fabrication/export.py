@@ -171,6 +171,13 @@ def files(asm: Assembly, report: dict, material: profiles.Material, *, rhino: bo
         report.setdefault("warnings", []).append(
             f"{', '.join(big)} do{'es' * (len(big) == 1)} not fit the bed laid on its print "
             "face: choose a smaller size or a larger printer")
+    for p in entries["print_layout"]["parts"]:
+        if p["support_share"] > layout.SUPPORT_AIM:
+            why = " (it carries the end-effector, which no face lays flat)" if \
+                p["name"] == "link_3" and "end_effector" in report else ""
+            report.setdefault("warnings", []).append(
+                f"{p['name']} needs support under {100 * p['support_share']:.0f} % of its "
+                f"downward-facing area{why}: print it with supports (print_layout)")
     return out, meshes, placements
 
 

@@ -38,6 +38,8 @@ TRIALS = 4
 TALLER = 1.5
 #: Gap between parts on a plate (mm).
 GAP_MM = 5.0
+#: Largest share of a part's downward-facing area printed over support without a warning.
+SUPPORT_AIM = 0.2
 
 
 def to_bed(down: np.ndarray) -> np.ndarray:

@@ -337,10 +337,13 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
             "fastest joint: a motor cannot hold the loop there (its links swing under "
             "gravity); turn it by hand, holding the base and a link across the loop (the "
             "physics check does so), or design a smoother motion (the smooth-drive criterion)")
-    tq = report["drive"].get("peak_torque_n_m", plan.torque_nm)
+    # turned by hand, no motor bends a bar: self-weight only (a motor's torque there, 1e3 -
+    # 1e8 times a smooth loop's, would read as metres of bending)
+    tq = None if ratio > HOLD_RATIO else report["drive"].get("peak_torque_n_m", plan.torque_nm)
     across = stiffness.across_gravity(asm.joint_factors, list(asm.bars), resting, up)
     defl = stiffness.deflections(plan.deflection.lengths, plan.radii, across,
-                                 opts.material.modulus_gpa, opts.material.density_g_cm3, tq)
+                                 opts.material.modulus_gpa, opts.material.density_g_cm3,
+                                 tq or 0.0)
     report["stiffness"] = stiffness.to_dict(defl, opts.material.modulus_gpa, tq)
     report["walls"] = thickness.walls({p.name: check.part_trimesh(p.manifold)
                                        for p in asm.parts}, opts.printer.wall_mm)

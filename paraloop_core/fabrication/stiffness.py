@@ -125,18 +125,21 @@ def across_gravity(joint_factors: np.ndarray, bars: list[np.ndarray], resting: i
     return np.sqrt(np.clip(1.0 - np.min(z * z, axis=0), 0.0, 1.0))
 
 
-def to_dict(d: Deflection, modulus_gpa: float, torque_nm: float) -> dict:
-    """JSON-ready per-link figures with the method stated."""
+def to_dict(d: Deflection, modulus_gpa: float, torque_nm: float | None) -> dict:
+    """JSON-ready per-link figures with the method stated (``torque_nm`` None: the loop is
+    turned by hand, no motor; torque deflections null)."""
     return {"links": [{"link": i, "length_mm": float(d.lengths[i]),
                        "width_mm": float(np.sqrt(3.0) * d.radii[i]),
                        "length_per_width": float(d.lengths[i] / (np.sqrt(3.0) * d.radii[i])),
-                       "sag_mm": float(d.sag[i]), "torque_deflection_mm": float(d.torque[i])}
+                       "sag_mm": float(d.sag[i]),
+                       "torque_deflection_mm": None if torque_nm is None else float(d.torque[i])}
                       for i in range(len(d.sag))],
             "modulus_gpa": modulus_gpa, "motor_torque_nm": torque_nm,
             "method": "beam estimates: self-weight sag of a simply supported hexagonal bar in "
                       "its most horizontal pose of the cycle, and the motor's peak torque as "
-                      "end moments on the bar (mid-span deflection); as-printed modulus at "
-                      "the low end of the material's range"}
+                      "end moments on the bar (mid-span deflection; none where no motor can "
+                      "hold the loop and it is turned by hand); as-printed modulus at the low "
+                      "end of the material's range"}
 
 
 def torque_matrix(real) -> np.ndarray:
