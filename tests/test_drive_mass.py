@@ -85,8 +85,24 @@ def test_drive_line_says_why_when_the_torque_is_missing():
         "motor torque not computed: part x is not a closed solid: no mass"
     assert drive_mass.material(1240) == "PLA 1240 kg/m^3"
     assert drive_mass.material(1000.0) == "density 1000 kg/m^3"
-    line = drive_mass.drive_line(F.printed().report["drive"])
+    entry = F.printed().report["drive"]
+    line = drive_mass.drive_line(entry)
     assert "N*m" in line and "PLA 1240 kg/m^3" in line and "resting link" in line
+    # past the ratio no motor holds the loop: no torque, the hand
+    fast = {**entry, "worst_speed_ratio": 2 * drive_mass.drive.HOLD_RATIO}
+    line = drive_mass.drive_line(fast)
+    assert "N*m" not in line and "by hand" in line and "PLA 1240 kg/m^3" in line
+    # the guide's summary says the same: a motor where one holds the loop, else the hand
+    from paraloop_core.fabrication import guide, profiles
+
+    pr = F.printed()
+    for entry_, says, never in ((entry, "Motor (optional)", "by hand"),
+                                (fast, "Drive: by hand", "Motor")):
+        report = {**pr.report, "parts": [{"mass_g": 5.0}], "drive": entry_,
+                  "choice": {**pr.report["choice"], "note": "the design's loop"}}
+        text = " ".join(guide.guide_text(pr.assembly, report, profiles.MATERIALS["pla"],
+                                         {})["summary"])
+        assert says in text and never not in text
 
 
 def test_a_loop_one_motor_cannot_hold_is_named(monkeypatch):

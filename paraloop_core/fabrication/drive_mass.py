@@ -83,6 +83,11 @@ def drive_line(entry: dict) -> str:
     ``drive`` entry, :func:`entry`, or why it is missing)."""
     if "error" in entry:
         return f"motor torque not computed: {entry['error']}"
+    if entry.get("worst_speed_ratio", 0.0) > drive.HOLD_RATIO:
+        return (f"turn it by hand (holding the base and a link across the loop): in part of "
+                f"its turn the best motor's joint moves {entry['worst_speed_ratio']:.0f} times "
+                f"slower than the fastest, so no motor holds it; "
+                f"{entry['moving_mass_kg']:.3g} kg moving ({material(entry['density_kg_m3'])})")
     return (f"motor joint {entry['motor']} (resting link {entry['resting_link']}): peak torque "
             f"{entry['peak_torque_n_m']:.3g} N*m for {entry['moving_mass_kg']:.3g} kg moving "
             f"({material(entry['density_kg_m3'])})")

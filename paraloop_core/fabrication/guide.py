@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from paraloop_core.fabrication import guide_html, guide_pictures, profiles
+from paraloop_core.linkage.drive import HOLD_RATIO
 
 
 def _joint_text(j, first: int) -> str:
@@ -97,8 +98,12 @@ def guide_text(asm, report: dict, material: profiles.Material, pictures: dict[st
                                                 f"{100 * b['com_margin_share']:.0f} % of the "
                                                 "plate's diameter inside its rim)."
                                                 if b["stands"] else f"{b['mount']}."))
-    if "drive" in report and "peak_torque_n_m" in report["drive"]:
-        d = report["drive"]
+    d = report.get("drive", {})
+    if d.get("worst_speed_ratio", 0.0) > HOLD_RATIO:
+        summary.append("Drive: by hand, holding the base and a link across the loop; no motor "
+                       "holds this loop (in part of its turn the motor's joint would move "
+                       f"{d['worst_speed_ratio']:.0f} times slower than the fastest).")
+    elif "peak_torque_n_m" in d:
         summary.append(f"Motor (optional): on joint {d['motor']}, at least "
                        f"{d['peak_torque_n_m']:.2f} N m against gravity.")
     steps = []

@@ -187,8 +187,12 @@ def choose(candidates: Iterable[Candidate], opts: Options, progress: Progress | 
         if enough and (not all(lifted) or len(sized) >= ENOUGH_SIZED + FLAT_SEARCH):
             break
     if not sized:
+        # the hardware is the same at every size, the room between the links grows with it
+        hint = (" What would work: a larger print (a printer with a larger bed, --printer or "
+                "--bed) leaves the joints' hardware more room; or a design whose links pass "
+                "farther apart." if any("do not fit in the room" in t for t in tried) else "")
         raise FabricationError("no realization of this design can be printed with real "
-                               "joints: " + "; ".join(tried), "bad-parameters")
+                               "joints: " + "; ".join(tried) + "." + hint, "bad-parameters")
     return sorted(sized, key=lambda c: _score(c[3]), reverse=True), tried
 
 
