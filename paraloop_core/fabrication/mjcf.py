@@ -29,7 +29,7 @@ and speed. The servos correct what the prediction misses (the closure's and the 
 compliance, a base that moves); at perfect tracking the damping term is 0.
 
 **Hand** (``hand=k``, instead of the motor): the base is held (anchored) and a hand holds
-link k (:func:`physics_model.hand_link`: across the loop from the grounded link): a mocap
+link k (:func:`physics_model.hand_links`: across the loop from the grounded link): a mocap
 body ``hand`` welded to link k's first body (the closure's stiffness), which the caller moves
 along link k's path. With two links held, each half of the loop is a chain of 2 - 4 hinges
 between fixed ends, rigid where its screws are independent: the way paradoxical loops are

@@ -22,13 +22,14 @@ copied: with the feedforward set to zero the servos alone give the same torque (
 
 **By hand** (``hand=True``; :func:`printed.physics_check` chooses it where one motor cannot
 hold the loop, ``drive.HOLD_RATIO``): no motor; the base is held and a hand holds a link
-across the loop (:func:`physics_model.hand_link`: the one that keeps both halves of the loop
-rigid; :mod:`mjcf`), moved along that link's path
-(:func:`physics_model.link_path`) on the same schedule. The weld that carries the hand trails
-a moving target by ``2 timeconst dampratio^2`` (MuJoCo's reference acceleration damps the
-relative velocity, and a mocap body has none), so the hand leads its path by that time
-(:data:`HAND_LEAD_S`): tv8's and random loops' links then follow the prediction to 0.01 -
-0.3 mm instead of 3 - 4 mm. No torque is reported (the hand's effort is not the motor's).
+across the loop (:func:`physics_model.hand_links`: the one that keeps both halves of the
+loop the most rigid, the next where that hold loses the loop; :mod:`mjcf`), moved along that
+link's path (:func:`physics_model.link_path`) on the same schedule. The weld that carries
+the hand trails a moving target by ``2 timeconst dampratio^2`` (MuJoCo's reference
+acceleration damps the relative velocity, and a mocap body has none), so the hand leads its
+path by that time (:data:`HAND_LEAD_S`): tv8's and random loops' links then follow the
+prediction to 0.01 - 0.3 mm instead of 3 - 4 mm. No torque is reported (the hand's effort is
+not the motor's).
 
 **Checks** (:class:`PhysicsReport`):
 
@@ -82,7 +83,7 @@ from paraloop_core.fabrication.physics_model import (
     Hinge,
     PhysicsModel,
     check_model,
-    hand_link,
+    hand_links,
     hinge_angles,
     link_path,
     rigid_dynamics,
@@ -183,19 +184,30 @@ def simulate(model: PhysicsModel, *, timestep: float = TIMESTEP,
     previous = mujoco.get_mju_user_warning()
     mujoco.set_mju_user_warning(messages.append)
     try:
-        return _simulate(model, timestep, quasi_static_peak_nm, anchored or hand, settle_s,
-                         wall, messages, hand)
+        if not hand:
+            return _simulate(model, timestep, quasi_static_peak_nm, anchored, settle_s, wall,
+                             messages, None)
+        # the links across the loop in turn, the most rigid hold first; as a maker would,
+        # another hold where one loses the loop (the report names the link held)
+        first = None
+        for held in hand_links(model):
+            rep = _simulate(model, timestep, quasi_static_peak_nm, True, settle_s, wall,
+                            messages, held)
+            if rep.completed:
+                return rep
+            first = first or rep
+        return first
     finally:
         mujoco.set_mju_user_warning(previous)
 
 
 def _simulate(model: PhysicsModel, timestep: float, quasi_static_peak_nm: float | None,
               anchored: bool, settle_s: float, wall: float, messages: list[str],
-              hand: bool) -> PhysicsReport:
+              held: int | None) -> PhysicsReport:
+    hand = held is not None
     tree = mjcf_mod.tree(model)
     times = np.asarray(model.time_s, float)
     inertia, rigid, gravity = rigid_dynamics(model, GRAVITY_WORLD)
-    held = hand_link(model) if hand else None
     servo = None if hand else mjcf_mod.servo_gains(float(inertia.min()), timestep)
     m = mujoco.MjModel.from_xml_string(mjcf(model, timestep=timestep, anchored=anchored,
                                             servo=servo, hand=held))

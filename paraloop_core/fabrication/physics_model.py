@@ -231,13 +231,14 @@ def link_path(model: PhysicsModel, link: int, time_s: np.ndarray) -> np.ndarray:
     return out
 
 
-def hand_link(model: PhysicsModel) -> int:
-    """The link a hand holds to turn the loop, the grounded link held too: of the links not
-    next to the grounded one, the one whose two half-chains (the hinges from the grounded
-    link to it, and the rest) stay the most rigid over the prediction. A half-chain between
-    two held links is rigid where its hinges' screws are linearly independent; the measure
-    is the least singular value of the screws ``(axis, moment / size)``, least over the
-    samples and both halves (0: the loop moves there with both links held)."""
+def hand_links(model: PhysicsModel) -> tuple[int, ...]:
+    """The links a hand may hold to turn the loop, the grounded link held too: the three not
+    next to the grounded one, best first by how rigid their two half-chains (the hinges
+    from the grounded link to it, and the rest) stay over the prediction. A half-chain
+    between two held links is rigid where its hinges' screws are linearly independent; the
+    measure is the least singular value of the screws ``(axis, moment / size)``, least over
+    the samples and both halves (0: the loop moves there with both links held). A measure,
+    not a proof: :func:`physics.simulate` tries the next where a hold loses the loop."""
     poses = np.asarray(model.link_poses, float)
     size = size_mm(model)
     screws = np.zeros((len(poses), 6, 6))
@@ -252,4 +253,4 @@ def hand_link(model: PhysicsModel) -> int:
         rest = np.setdiff1d(np.arange(6), half)
         best[k] = min(np.linalg.svd(screws[:, part], compute_uv=False)[:, -1].min()
                       for part in (half, rest))
-    return max(best, key=lambda k: (best[k], k == (g + 3) % 6))
+    return tuple(sorted(best, key=lambda k: (best[k], k == (g + 3) % 6), reverse=True))
