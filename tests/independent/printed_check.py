@@ -7,7 +7,8 @@ layout from ``report.json`` (joint axes and hardware, base frame, densities, bed
 1. bars: sections of each link perpendicular to its bar at 20 %..80 % of its length (outside
    its bosses); least caliper width >= 6 mm, length / width <= 30;
 2. joints (:mod:`printed_joints`): engagement >= 1.5 x the axle diameter in both links, walls
-   >= the profile wall, retention (lock nut and hexagonal trap, or the rod's cap);
+   >= the profile wall, retention (lock nut and hexagonal trap, the rod's or dowel's cap,
+   or without a cap the floor of the turning link's blind bore just past the axle's tip);
 3. stands (:mod:`printed_stand`): centre of mass inside the plate's footprint with 10 % margin
    over the cycle, nothing below the plate's top; or ``base.mount`` says how it is fixed;
 4. printing (:mod:`printed_layout`): support <= 20 % of the downward area, height <= 3 x the
