@@ -24,12 +24,11 @@ import numpy as np
 from paraloop_core import pipeline
 from paraloop_core.design import DriveSettings
 from paraloop_core.errors import RealizationError
-from paraloop_core.fabrication import animate, bed, check, guide, printable
+from paraloop_core.fabrication import animate, bed, check, drive_mass, guide, printable
 from paraloop_core.fabrication import export as export_files
 from paraloop_core.fabrication.printable import Candidate, Options, Printed
 from paraloop_core.fabrication.step_job import StepJob
 from paraloop_core.linkage import drive_plan
-from paraloop_core.linkage.drive import HOLD_RATIO
 from paraloop_core.pipeline import Solution
 from paraloop_core.realization import polyline, realize, roomy
 from paraloop_core.result import json_text, result_to_dict
@@ -289,7 +288,7 @@ def physics_check(printed: Printed, opts: Options, settings: DriveSettings,
     anchored = printed.base is None
     quasi = printed.report["drive"].get("peak_torque_n_m")
     if hand is None:  # a motor where one can hold the loop, else a hand
-        hand = printed.report["drive"].get("worst_speed_ratio", 0.0) > HOLD_RATIO
+        hand = drive_mass.by_hand(printed.report["drive"])
     rep = physics.simulate(model, quasi_static_peak_nm=quasi, anchored=anchored, hand=hand)
     names = {b.name: f"physics_{b.name}.stl" for b in model.bodies}
     xml = physics.mjcf(model, names, timestep=rep.timestep, anchored=rep.anchored,

@@ -110,7 +110,7 @@ def test_a_loop_one_motor_cannot_hold_is_named(monkeypatch):
     says what would work (here the limit lowered under the fixture's smooth loop)."""
     from paraloop_core.fabrication import printable
 
-    monkeypatch.setattr(printable, "HOLD_RATIO", 1.0)
+    monkeypatch.setattr(drive_mass.drive, "HOLD_RATIO", 1.0)
     cand = printable.Candidate("test loop", 4, lambda: (F.real(), None))
     pr = printable.make([cand], printable.Options(size_mm=F.SIZE_MM, samples=16,
                                                   ground=False))

@@ -19,8 +19,7 @@ import viser
 from app.panels.design import handler
 from app.printjob import Parts
 from app.wording import gui_text
-from paraloop_core.fabrication import profiles
-from paraloop_core.linkage.drive import HOLD_RATIO
+from paraloop_core.fabrication import drive_mass, profiles
 
 #: The card before any parts are built.
 WAITING = "*The printed parts are built a moment after the design settles.*"
@@ -103,7 +102,7 @@ def card_text(parts: Parts) -> str:
         total = 1e3 * sum(drive["link_masses_kg"])
         lines.append(f"- **Weight:** {total:.0f} g in all, {plastic:.0f} g of it printed "
                      f"{drive['material']}")
-        if drive.get("worst_speed_ratio", 0.0) > HOLD_RATIO:
+        if drive_mass.by_hand(drive):
             lines.append("- **Motor:** none; one motor cannot hold this loop: turn it by hand, "
                          "holding the base and a link across the loop (see the note)")
         else:

@@ -78,12 +78,18 @@ def material(density_kg_m3: float) -> str:
     return f"{name} {rho:g} kg/m^3"
 
 
+def by_hand(entry: dict) -> bool:
+    """Whether a report's ``drive`` entry (:func:`entry`) says that one motor cannot hold
+    the loop (its worst speed ratio past :data:`drive.HOLD_RATIO`): it is turned by hand."""
+    return entry.get("worst_speed_ratio", 0.0) > drive.HOLD_RATIO
+
+
 def drive_line(entry: dict) -> str:
     """One line for people: motor joint, peak torque, moving mass, material (a report's
     ``drive`` entry, :func:`entry`, or why it is missing)."""
     if "error" in entry:
         return f"motor torque not computed: {entry['error']}"
-    if entry.get("worst_speed_ratio", 0.0) > drive.HOLD_RATIO:
+    if by_hand(entry):
         return (f"turn it by hand (holding the base and a link across the loop): in part of "
                 f"its turn the best motor's joint moves {entry['worst_speed_ratio']:.0f} times "
                 f"slower than the fastest, so no motor holds it; "

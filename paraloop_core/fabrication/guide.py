@@ -12,8 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from paraloop_core.fabrication import guide_html, guide_pictures, profiles
-from paraloop_core.linkage.drive import HOLD_RATIO
+from paraloop_core.fabrication import drive_mass, guide_html, guide_pictures, profiles
 
 
 def _joint_text(j, first: int) -> str:
@@ -31,7 +30,7 @@ def _joint_text(j, first: int) -> str:
         return (f"Joint {a} joins link {a} and link {b}: push the printed pin_{a} through "
                 f"link {a} (head side) and link {b}, then press the printed pin cap onto its "
                 "end (a drop of glue if it is loose). The joint must turn freely.")
-    if kind == "dowel" and _enclosed(j):
+    if kind == "dowel" and j.blind:
         fixed = j.fixed_link
         free = b if fixed == a else a
         return (f"Joint {a} joins link {a} and link {b} on a {j.axle_d:g} mm steel dowel: "
@@ -47,7 +46,7 @@ def _joint_text(j, first: int) -> str:
                 f"into the blind bore of link {fixed} (to its floor), slide link {free} on, "
                 "then glue the printed dowel cap onto the dowel's end, leaving the joint free "
                 f"to turn (no glue on link {free}).")
-    if _enclosed(j):
+    if j.blind:
         return (f"Joint {a} joins link {a} and link {b} on the rod (the grounding column): "
                 f"push the rod through link {first}'s boss (the grounded link) into the other "
                 "link's blind bore until it stops, draw it back half a millimetre and glue it "
@@ -63,16 +62,10 @@ def assembly_order(joints: tuple) -> list:
     slide along its axis): without a rod the chain ends on another joint."""
     chain = [j for j in joints if j.kind != "rod"]
     if not any(j.kind == "rod" for j in joints):
-        open_ = [k for k, j in enumerate(chain) if not (j.kind == "dowel" and _enclosed(j))]
+        open_ = [k for k, j in enumerate(chain) if not (j.kind == "dowel" and j.blind)]
         last = open_[-1] if open_ else len(chain) - 1
         chain = chain[last + 1:] + chain[:last + 1]
     return chain + [j for j in joints if j.kind == "rod"]
-
-
-def _enclosed(j) -> bool:
-    """Whether a rod or dowel joint has no cap: its axle ends in the turning link's blind
-    bore (:func:`joints.layout`)."""
-    return j.kind in ("rod", "dowel") and not any(p.printed for p in j.pieces)
 
 
 def guide_text(asm, report: dict, material: profiles.Material, pictures: dict[str, str]
@@ -99,7 +92,7 @@ def guide_text(asm, report: dict, material: profiles.Material, pictures: dict[st
                                                 "plate's diameter inside its rim)."
                                                 if b["stands"] else f"{b['mount']}."))
     d = report.get("drive", {})
-    if d.get("worst_speed_ratio", 0.0) > HOLD_RATIO:
+    if drive_mass.by_hand(d):
         summary.append("Drive: by hand, holding the base and a link across the loop; no motor "
                        "holds this loop (in part of its turn the motor's joint would move "
                        f"{d['worst_speed_ratio']:.0f} times slower than the fastest).")

@@ -112,6 +112,12 @@ class Joint:
         return self.origin + np.multiply.outer(s, self.w)
 
     @property
+    def blind(self) -> bool:
+        """Kinds ``rod`` and ``dowel`` without a cap: the axle ends in the turning link's
+        blind bore, whose floor keeps that link on (:func:`layout`)."""
+        return self.kind in ("rod", "dowel") and not any(p.printed for p in self.pieces)
+
+    @property
     def fixed_link(self) -> int | None:
         """Kinds ``rod`` and ``dowel``: the link holding the axle fixed (else None)."""
         return None if self.rod_side is None else (self.index + self.rod_side) % 6

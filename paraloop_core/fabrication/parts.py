@@ -135,10 +135,8 @@ def holes(j: Joint, upper: bool, far: float, n: int = SEGMENTS) -> csg.Union:
         floor = j.axle.s1 if upper else j.axle.s0  # the dowel's end in it
         return csg.Union((_axis(j, lo - far, floor, bore, n) if upper else
                           _axis(j, floor, hi + far, bore, n),))
-    if j.kind in ("rod", "dowel") and j.rod_side != int(upper) and \
-            not any(p.printed for p in j.pieces):
-        # a rod or dowel without a cap: the turning link's bore is blind, its floor a
-        # clearance past the axle's tip (it keeps that link on the axle)
+    if j.blind and j.rod_side != int(upper):
+        # the turning link's bore is blind, its floor a clearance past the axle's tip
         end = j.axle.s1 + j.gap if upper else j.axle.s0 - j.gap
         return csg.Union((_axis(j, lo - far, end, bore, n) if upper else
                           _axis(j, end, hi + far, bore, n),))

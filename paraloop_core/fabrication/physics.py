@@ -398,6 +398,6 @@ METHOD = ("MuJoCo forward simulation of the parts as rigid bodies (masses, inert
           "meshes at uniform density), hinges on the joint axes, the loop closed by two connect "
           "constraints on one hinge's axis, gravity -z, the base free on a table with friction "
           "1 (unless anchored), the motor hinge position- and velocity-servoed along the "
-          "schedule (or, turned by hand, the base held and the opposite link moved along its "
-          "path by a welded mocap body); torque = the servo's force; pose error relative to "
+          "schedule (or, turned by hand, the base held and a link across the loop moved along "
+          "its path by a welded mocap body); torque = the servo's force; pose error relative to "
           "the grounded link at the corners of each link's bounding box")

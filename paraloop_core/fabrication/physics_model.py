@@ -22,6 +22,7 @@ import numpy as np
 import trimesh
 from scipy.interpolate import CubicSpline
 
+from paraloop_core.algebra import dq
 from paraloop_core.errors import FabricationError
 
 #: metres per mm: the model is in mm, MuJoCo in metres (:mod:`mjcf`); the one conversion.
@@ -221,13 +222,7 @@ def link_path(model: PhysicsModel, link: int, time_s: np.ndarray) -> np.ndarray:
     for joint in (np.arange(model.grounded_link, model.grounded_link + (link -
                   model.grounded_link) % 6) % 6):
         h = by_joint[int(joint)]
-        a, p = np.asarray(h.axis, float), np.asarray(h.point_mm, float)
-        k = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
-        th = angles[:, joint, None, None]
-        rot = np.eye(3) + np.sin(th) * k + (1.0 - np.cos(th)) * (k @ k)  # Rodrigues
-        step = np.broadcast_to(np.eye(4), rot.shape[:1] + (4, 4)).copy()
-        step[:, :3, :3], step[:, :3, 3] = rot, p - rot @ p  # about the line through p
-        out = out @ step
+        out = out @ dq.to_matrix(dq.rotation_about_line(h.axis, h.point_mm, angles[:, joint]))
     return out
 
 

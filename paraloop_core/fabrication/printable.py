@@ -52,7 +52,6 @@ from paraloop_core.fabrication import (
 from paraloop_core.fabrication.assembly import Assembly
 from paraloop_core.fabrication.profiles import Options
 from paraloop_core.linkage import loops
-from paraloop_core.linkage.drive import HOLD_RATIO
 from paraloop_core.realization.certified import Realization
 
 Progress = Callable[[float, str], None]
@@ -334,8 +333,9 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
     up = b.up if b is not None else np.array([0.0, 0.0, 1.0])
     report["drive"] = drive_mass.entry(asm.joint_factors, asm.scale, masses, centers, resting,
                                        drive, opts.material, up)
-    ratio = report["drive"].get("worst_speed_ratio", 0.0)
-    if ratio > HOLD_RATIO:
+    hand = drive_mass.by_hand(report["drive"])
+    if hand:
+        ratio = report["drive"]["worst_speed_ratio"]
         report["warnings"].append(
             f"in part of its turn the motor's joint moves {ratio:.0f} times slower than the "
             "fastest joint: a motor cannot hold the loop there (its links swing under "
@@ -343,7 +343,7 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
             "physics check does so), or design a smoother motion (the smooth-drive criterion)")
     # turned by hand, no motor bends a bar: self-weight only (a motor's torque there, 1e3 -
     # 1e8 times a smooth loop's, would read as metres of bending)
-    tq = None if ratio > HOLD_RATIO else report["drive"].get("peak_torque_n_m", plan.torque_nm)
+    tq = None if hand else report["drive"].get("peak_torque_n_m", plan.torque_nm)
     across = stiffness.across_gravity(asm.joint_factors, list(asm.bars), resting, up)
     defl = stiffness.deflections(plan.deflection.lengths, plan.radii, across,
                                  opts.material.modulus_gpa, opts.material.density_g_cm3,
