@@ -40,6 +40,19 @@ def test_support_known_answers():
     assert layout.support(t.vertices, t.faces, [0.0, -1.0, 0.0])[0] == pytest.approx(0.0)
 
 
+def test_a_ramp_from_the_bed_needs_support_above_the_first_layer():
+    """A wedge resting on its 10 mm edge whose underside rises at 30 deg from the bed: the
+    underside touches the first layer along that edge, and all of it above 0.3 mm needs
+    support (a face is not exempt for touching the first layer at one end)."""
+    a = np.radians(30.0)
+    end = [40 * np.cos(a), 0, 40 * np.sin(a)]
+    side = [[0, 0, 0], end, [end[0], 0, end[2] + 5]]
+    m = mesh(m3d.Manifold.hull_points([list(p) for p in np.vstack([side, np.add(side,
+                                                                                [0, 10, 0])])]))
+    area, _ = layout.support(m.vertices, m.faces, DOWN)
+    assert area == pytest.approx(10 * (40 - layout.FIRST_LAYER_MM / np.sin(a)), rel=1e-6)
+
+
 @pytest.mark.parametrize(("tilt", "needs"), [(30.0, True), (60.0, False)])
 def test_support_at_the_overhang_limit(tilt, needs):
     """A slab 10 mm deep whose underside rises ``tilt`` deg from the horizontal, its low end

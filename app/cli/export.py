@@ -100,7 +100,7 @@ def summary_line(report: dict) -> str:
     """One line a maker reads: size, bars, joints, base, weight, checks."""
     sz, v, b = report["sizing"], report["verification"], report.get("base")
     widths = sz["bar_width_mm"]
-    mass = sum(p["mass_g"] for p in report["parts"])
+    mass = sum(p["mass_g"] for p in report["parts"] if "printed_as" not in p)
     kinds = [j["kind"] for j in report["joints"] if j["kind"] not in ("rod", "dowel")]
     kind = max(set(kinds), key=kinds.count) if kinds else "rod"
     hardware = {"m2": "M2 screws", "m3": "M3 screws", "m4": "M4 screws",

@@ -83,11 +83,12 @@ def card_text(parts: Parts) -> str:
     fits = all(p["fits_bed"] for p in layout["parts"])
     plates = layout["plates"]
     support = max(layout["parts"], key=lambda p: p["support_share"])
-    plastic = sum(p["mass_g"] for p in r["parts"])
+    printed = [p for p in r["parts"] if "printed_as" not in p]  # a link's pieces, not it
+    plastic = sum(p["mass_g"] for p in printed)
     drive = r["drive"]
     lines = [
         head,
-        f"- **Size:** {sz['size_mm']:.0f} mm across; {len(r['parts'])} parts on {plates} "
+        f"- **Size:** {sz['size_mm']:.0f} mm across; {len(printed)} parts on {plates} "
         f"plate{'s' * (plates > 1)} of the {bed[0]:.0f} x {bed[1]:.0f} mm bed"
         + ("" if fits else " - **a part does not fit the bed**"),
         f"- **Thinnest bar:** {thin['width_mm']:.1f} mm wide (link {thin['link']}); the most "

@@ -3,6 +3,8 @@
 * ``<part>.stl``: every printed part in the assembled home pose (mm, the grounded sculpture's
   frame, z up), so the files drop into CAD assembled: ``link_<i>``, printed pins and caps,
   ``base_plate``;
+* an end link printed in pieces (:mod:`split`): ``link_3.stl`` assembled and its pieces
+  ``link_3_arm_1``, ``link_3_arm_2``, ``link_3_end`` (the 3MF holds the pieces);
 * ``paraloop.3mf`` (``paraloop_plate<k>.3mf`` for more plates): the same parts laid on their
   print faces and arranged on the printer's bed (:mod:`layout`);
 * ``assembly.glb``: the assembled loop, parts coloured per link, hardware in steel grey;
@@ -24,7 +26,7 @@ import numpy as np
 import trimesh
 
 from paraloop_core.errors import FabricationError
-from paraloop_core.fabrication import check, layout, profiles
+from paraloop_core.fabrication import check, layout, profiles, split
 from paraloop_core.fabrication.assembly import Assembly
 from paraloop_core.fabrication.step_job import StepJob
 
@@ -78,8 +80,10 @@ def assembly_glb(asm: Assembly, meshes: dict[str, trimesh.Trimesh]) -> bytes:
     return scene.export(file_type="glb")
 
 
-def bill_of_materials(asm: Assembly, material: profiles.Material) -> list[dict]:
-    """Hardware and printed parts to buy or print: item, quantity, what for."""
+def bill_of_materials(asm: Assembly, material: profiles.Material,
+                      pieces: split.Split | None = None) -> list[dict]:
+    """Hardware and printed parts to buy or print: item, quantity, what for (a link printed
+    in ``pieces``: its dowel pins and pieces)."""
     hw: Counter = Counter()
     for j in asm.joints:
         if j.kind in profiles.FASTENERS:
@@ -91,6 +95,10 @@ def bill_of_materials(asm: Assembly, material: profiles.Material) -> list[dict]:
             hw[f"{j.axle_d:g} mm steel dowel pin (ISO 8734) or rod, "
                f"{j.axle.s1 - j.axle.s0:.0f} mm long"] += 1
     rows = [{"item": k, "quantity": v, "for": "joints"} for k, v in sorted(hw.items())]
+    if pieces is not None:
+        rows.append({"item": f"{split.DOWEL_D_MM:g} mm steel dowel pin (ISO 8734), "
+                             f"{split.DOWEL_L_MM:g} mm long", "quantity": len(pieces.dowels),
+                     "for": f"gluing link {pieces.link}'s pieces together"})
     for h in asm.hardware:
         if h.role.endswith(" rod"):
             length = float(np.linalg.norm(h.capsule[1] - h.capsule[0]))
@@ -101,10 +109,15 @@ def bill_of_materials(asm: Assembly, material: profiles.Material) -> list[dict]:
     glued = [w for w, k in (("the rod in the grounded link, the base and its cap", "rod"),
                             ("the dowels in their blind bores and their caps", "dowel"))
              if any(j.kind == k for j in asm.joints)]
+    if pieces is not None:
+        glued.append(f"link {pieces.link}'s pieces on their dowel pins")
     if glued:
         rows.append({"item": "two-part epoxy or cyanoacrylate glue", "quantity": 1,
                      "for": "; ".join(glued)})
-    printed = Counter(p.role for p in asm.parts)
+    printed = Counter(p.role for p in asm.parts
+                      if pieces is None or (p.link, p.role) != (pieces.link, "link"))
+    if pieces is not None:
+        printed["link piece"] = len(pieces.meshes)
     for role, n in sorted(printed.items()):
         rows.append({"item": f"printed {role}" + ("s" if n > 1 else ""), "quantity": n,
                      "for": f"{material.name}"})
@@ -112,14 +125,23 @@ def bill_of_materials(asm: Assembly, material: profiles.Material) -> list[dict]:
 
 
 def parts_entry(asm: Assembly, meshes: dict[str, trimesh.Trimesh],
-                material: profiles.Material) -> list[dict]:
-    """Per printed part: link, role, box extents, volume and mass."""
-    return [{"name": p.name, "link": p.link, "role": p.role,
-             "obb_extents_mm": np.sort(meshes[p.name].bounding_box_oriented.primitive.extents
-                                       ).tolist(),
-             "volume_cm3": meshes[p.name].volume / 1e3,
-             "mass_g": meshes[p.name].volume / 1e3 * material.density_g_cm3}
-            for p in asm.parts]
+                material: profiles.Material, pieces: split.Split | None = None) -> list[dict]:
+    """Per printed part: link, role, box extents, volume and mass; a link printed in
+    ``pieces`` says so (``printed_as``) and its pieces follow it (role ``"link piece"``)."""
+    def row(name: str, link: int, role: str) -> dict:
+        return {"name": name, "link": link, "role": role,
+                "obb_extents_mm": np.sort(meshes[name].bounding_box_oriented.primitive.extents
+                                          ).tolist(),
+                "volume_cm3": meshes[name].volume / 1e3,
+                "mass_g": meshes[name].volume / 1e3 * material.density_g_cm3}
+
+    rows = []
+    for p in asm.parts:
+        rows.append(row(p.name, p.link, p.role))
+        if pieces is not None and p.link == pieces.link and p.role == "link":
+            rows[-1]["printed_as"] = pieces.entry()
+            rows += [row(n, pieces.link, "link piece") for n in pieces.meshes]
+    return rows
 
 
 def step_colors(asm: Assembly) -> dict[str, np.ndarray]:
@@ -131,10 +153,11 @@ def step_files(asm: Assembly, report: dict, job: StepJob | None = None
                ) -> list[tuple[str, bytes]]:
     """``parts.step`` and ``assembly.step`` (:mod:`step`; by ``job``'s helper process when
     it was handed ``asm``, :mod:`step_job`); each of ``report``'s ``parts`` gains ``step``:
-    ``"exact"``, ``"exact, polyhedral fillet"`` or ``"faceted"``."""
+    ``"exact"``, ``"exact, polyhedral fillet"`` or ``"faceted"`` (a link's printed piece:
+    none)."""
     out, kinds = (job or StepJob(spawn=False)).result(asm, step_colors(asm), STEEL)
-    for entry in report.get("parts", []):
-        entry["step"] = kinds[entry["name"]]
+    for entry in report.get("parts", []):  # a link's printed pieces: its solid stands for them
+        entry["step"] = kinds.get(entry["name"], "none: in its link's solid")
     return out
 
 
@@ -166,6 +189,10 @@ def files(asm: Assembly, report: dict, material: profiles.Material, *, rhino: bo
         out.append(("paraloop.3dm", rhino_mod.assembly_3dm(
             meshes, {p.name: color_of(p.link) for p in asm.parts})))
     report.update(entries)
+    pieces = next((p for p in entries["parts"] if "printed_as" in p), None)
+    if pieces is not None:  # it does not stand on its bosses: its pieces lie flat
+        report["warnings"] = [w for w in report.get("warnings", [])
+                              if not w.startswith(f"link {pieces['link']} cannot lie on")]
     big = [p["name"] for p in entries["print_layout"]["parts"] if not p["fits_bed"]]
     if big:  # only at a size the maker chose: the automatic size shrinks until all fit
         report.setdefault("warnings", []).append(
@@ -174,7 +201,7 @@ def files(asm: Assembly, report: dict, material: profiles.Material, *, rhino: bo
     for p in entries["print_layout"]["parts"]:
         if p["support_share"] > layout.SUPPORT_AIM:
             why = " (it carries the end-effector, which no face lays flat)" if \
-                p["name"] == "link_3" and "end_effector" in report else ""
+                p["name"].startswith("link_3") and "end_effector" in report else ""
             report.setdefault("warnings", []).append(
                 f"{p['name']} needs support under {100 * p['support_share']:.0f} % of its "
                 f"downward-facing area{why}: print it with supports (print_layout)")
@@ -185,12 +212,19 @@ def report_entries(asm: Assembly, material: profiles.Material
                    ) -> tuple[dict, dict[str, trimesh.Trimesh], list]:
     """``(entries, meshes, placements)``: what the export adds to the report
     (``print_layout``, ``parts``, ``bill_of_materials``, ``scale_mm_per_unit``), the parts'
-    meshes (print frame, mm) and their bed placements; :func:`files` without the files (the
-    studio's summary of the parts on screen)."""
+    meshes (home frame, mm; an end link printed in pieces, :mod:`split`, also as its pieces)
+    and the bed placements of what is printed; :func:`files` without the files (the studio's
+    summary of the parts on screen)."""
     meshes = part_meshes(asm)
-    placements = layout.bed_layout(meshes, downs(asm), asm.printer.bed_mm)
+    down = downs(asm)
+    placements = layout.bed_layout(meshes, down, asm.printer.bed_mm)
+    pieces = split.split_end_link(asm, meshes["link_3"], down["link_3"])
+    if pieces is not None:  # the pieces are printed in its place
+        printed = {n: m for n, m in meshes.items() if n != "link_3"} | pieces.meshes
+        placements = layout.bed_layout(printed, down | pieces.downs, asm.printer.bed_mm)
+        meshes = meshes | pieces.meshes
     entries = {"print_layout": layout.layout_entry(placements, asm.printer.bed_mm),
-               "parts": parts_entry(asm, meshes, material),
-               "bill_of_materials": bill_of_materials(asm, material),
+               "parts": parts_entry(asm, meshes, material, pieces),
+               "bill_of_materials": bill_of_materials(asm, material, pieces),
                "scale_mm_per_unit": asm.scale}
     return entries, meshes, placements

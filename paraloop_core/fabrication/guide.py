@@ -75,11 +75,12 @@ def guide_text(asm, report: dict, material: profiles.Material, pictures: dict[st
     sz, choice = report["sizing"], report["choice"]
     widths = np.asarray(sz["bar_width_mm"])
     b = report.get("base")
-    mass = sum(p["mass_g"] for p in report["parts"])
+    printed = [p for p in report["parts"] if "printed_as" not in p]  # pieces, not their link
+    mass = sum(p["mass_g"] for p in printed)
     summary = [
         f"Size: {sz['size_mm']:.0f} mm (longest side of the loop), bars "
         f"{widths.min():.1f} - {widths.max():.1f} mm wide, {mass:.0f} g of "
-        f"{material.name} in {len(report['parts'])} printed parts.",
+        f"{material.name} in {len(printed)} printed parts.",
         f"Printed loop: {choice['note']}." if choice.get("loop") != choice.get("design_loop")
         or "note" in choice else "",
     ]
@@ -99,7 +100,7 @@ def guide_text(asm, report: dict, material: profiles.Material, pictures: dict[st
     elif "peak_torque_n_m" in d:
         summary.append(f"Motor (optional): on joint {d['motor']}, at least "
                        f"{d['peak_torque_n_m']:.2f} N m against gravity.")
-    steps = []
+    steps = [(_pieces_text(p), None) for p in report["parts"] if "printed_as" in p]
     grounded = None if b is None else b["grounded_link"]
     order = assembly_order(asm.joints)
     for k, j in enumerate(order):
@@ -114,6 +115,17 @@ def guide_text(asm, report: dict, material: profiles.Material, pictures: dict[st
     steps.append(("Turn the loop by hand through its whole cycle: it turns inside out. If a "
                   "joint binds, loosen its nut a quarter turn.", pictures.get("loop")))
     return {"summary": [s for s in summary if s], "steps": steps}
+
+
+def _pieces_text(part: dict) -> str:
+    """The gluing step of a link printed in pieces (:mod:`split`)."""
+    names = part["printed_as"]["pieces"]
+    n = len(part["printed_as"]["dowels"])
+    return (f"Glue {part['name'].replace('_', ' ')} together from {', '.join(names)}: glue a "
+            f"{part['printed_as']['dowels'][0]['pin']} halfway into the end bore of each arm "
+            f"({n} pins), then push each arm onto its bore in {names[-1]}, the cut faces flat "
+            "on each other and the hexagon's faces in line, with glue on the faces; let it set "
+            "before the joints are assembled.")
 
 
 def print_settings(printer: profiles.Printer, material: profiles.Material) -> list[str]:
@@ -137,7 +149,7 @@ def markdown(title: str, text: dict, bom: list[dict], parts: list[dict], setting
              "## What you need", "", "| item | quantity | for |", "|---|---|---|",
              *[f"| {r['item']} | {r['quantity']} | {r['for']} |" for r in bom], "",
              "## Parts", "", "| part | size (mm) | mass (g) |", "|---|---|---|",
-             *[f"| {p['name']}.stl | "
+             *[f"| {p['name']}.stl{' (assembled: print its pieces)' * ('printed_as' in p)} | "
                f"{' x '.join(f'{v:.0f}' for v in sorted(p['obb_extents_mm'], reverse=True))} | "
                f"{p['mass_g']:.0f} |" for p in parts], "",
              "## Print settings", "", *[f"- {s}" for s in settings], "",
@@ -177,7 +189,7 @@ def pages(printed, meshes: dict, placements: list, opts, report: dict
         parts=tuple(guide_html.PartRow(
             f"{p['name']}.stl", str(layout[p["name"]]["plate"]),
             "as laid in the 3MF", layout[p["name"]]["support_mm2"],
-            f"{p['mass_g']:.0f} g") for p in report["parts"]),
+            f"{p['mass_g']:.0f} g") for p in report["parts"] if p["name"] in layout),
         steps=tuple(guide_html.Step(
             f"Step {k + 1}", step, () if not pic else (guide_html.Picture(pic, step[:80]),))
             for k, (step, pic) in enumerate(text["steps"])))

@@ -7,8 +7,9 @@
   those laid so that the part fits the bed where one does, and then so that the least surface
   needs support, judged on the part itself at coarse resolution (the lowest ones compete).
 * **Support** (:func:`support`): a downward face needs support when it leans more than
-  :data:`OVERHANG_DEG` from the vertical and lies above the first layer; reported per part as
-  area and as the share of the part's downward-facing area.
+  :data:`OVERHANG_DEG` from the vertical, where it lies above the first layers (a face is
+  cut exactly at :data:`FIRST_LAYER_MM`); reported per part as area and as the share of the
+  part's downward-facing area.
 * **Plates** (:func:`bed_layout`): footprints turned to their smallest box (diagonally where a
   part needs it), in rows, largest first, :data:`GAP_MM` apart and :data:`bed.EDGE_MM` from
   the bed's edges (the room the sizing fitted them to); a new plate when the bed is full.
@@ -55,9 +56,23 @@ def support(vertices: np.ndarray, faces: np.ndarray, down: np.ndarray) -> tuple[
     n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     area = 0.5 * np.linalg.norm(n, axis=1)
     nz = np.divide(n[:, 2], 2 * area, out=np.zeros(len(area)), where=area > 0)
-    low = tri[:, :, 2].min(axis=1) - v[:, 2].min()
     steep = nz < -np.cos(np.radians(OVERHANG_DEG))
-    return float(area[steep & (low > FIRST_LAYER_MM)].sum()), float(area[nz < -1e-9].sum())
+    above = _above(tri[steep, :, 2] - v[:, 2].min(), FIRST_LAYER_MM)
+    return float(area[steep] @ above), float(area[nz < -1e-9].sum())
+
+
+def _above(z: np.ndarray, level: float) -> np.ndarray:
+    """Share ``(F,)`` of each planar triangle lying above the height ``level``, from its
+    corners' heights ``z`` ``(F, 3)``: exact (height is linear on a triangle; a steep face
+    touching the first layer at one corner still needs support over the rest)."""
+    lo, mid, hi = np.sort(z, axis=1).T
+    span = np.maximum(hi - lo, 1e-12)  # a flat triangle (span 0) is on one side: no division
+    # the corner beyond the plane cuts off a similar triangle: its share is the square of
+    # the ratio of heights along both edges from that corner
+    low_tip = (level - lo) ** 2 / (span * np.maximum(mid - lo, 1e-12))
+    high_tip = (hi - level) ** 2 / (span * np.maximum(hi - mid, 1e-12))
+    return np.where(level <= lo, 1.0, np.where(level >= hi, 0.0, np.where(
+        level <= mid, 1.0 - low_tip, high_tip)))
 
 
 def laid_extent(vertices: np.ndarray, down: np.ndarray) -> np.ndarray:

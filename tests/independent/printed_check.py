@@ -13,7 +13,9 @@ layout from ``report.json`` (joint axes and hardware, base frame, densities, bed
    over the cycle, nothing below the plate's top; or ``base.mount`` says how it is fixed;
 4. printing (:mod:`printed_layout`): support <= 20 % of the downward area, height <= 3 x the
    contact width, inside the bed;
-5. collisions (:mod:`printed_collide`): parts without a common joint >= 1 mm apart.
+5. collisions (:mod:`printed_collide`): parts without a common joint >= 1 mm apart;
+6. a link printed in pieces (:mod:`printed_pieces`): the pieces make up the link, each dowel
+   engaged >= 1.5 x its diameter in both pieces, walls and floors >= the profile wall.
 
 ``python -m independent.printed_check FOLDER`` (from ``tests/``) prints the JSON findings.
 """
@@ -31,6 +33,7 @@ from .printed_collide import check_collisions
 from .printed_joints import check_bom, check_joint
 from .printed_kin import Export, bars, closure_error, load_export, parameters
 from .printed_layout import check_layout
+from .printed_pieces import check_pieces
 from .printed_stand import check_stand
 
 #: Least bar width (mm) and largest length / width.
@@ -119,6 +122,8 @@ def check_export(folder: str | Path, collisions: bool = True) -> dict:
     figures["stand"], f = check_stand(ex)
     fails += f
     figures["print"], f = check_layout(ex)
+    fails += f
+    figures["pieces"], f = check_pieces(ex, wall)
     fails += f
     if collisions:
         figures["collisions"], f = check_collisions(ex, figures["stand"].get("rod"))

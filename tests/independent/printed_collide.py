@@ -171,7 +171,8 @@ def check_collisions(ex, rod: dict | None = None) -> tuple[dict, list[str]]:
     """Figures and failures of the clearance check; ``rod`` (home mm ``bottom``, ``top``,
     ``radius_mm``) adds the grounding rod to the still base."""
     carried = [p for p in ex.report.get("parts", [])  # printed pieces other than the rod's cap
-               if p["role"] not in ("link", "base") and not p["name"].startswith("rod_cap")]
+               if p["role"] not in ("link", "base", "link piece")
+               and not p["name"].startswith("rod_cap")]
     bodies = [Body(f"link_{i}", [m] + _hardware(ex, i) + [ex.mesh(p["name"]) for p in carried
                                                           if int(p["link"]) == i], i)
               for i, m in enumerate(ex.links)]

@@ -1,10 +1,11 @@
 """Print checks of an export's 3MF plates, read with trimesh (independent of paraloop_core).
 
 Each plate file (``paraloop.3mf``, ``paraloop_plate<k>.3mf``) holds parts in print
-orientation, the bed at z = 0. Per part: the downward-facing area (faces whose normal points
-down, n_z < -1e-6), the area needing support (faces leaning less than 45 deg from straight
-down, their part more than 0.3 mm above the bed, cut exactly at that height), its height and
-the least caliper width of the convex hull of the faces lying on the bed (z <= 0.05 mm).
+orientation, the bed at z = 0 (a link printed in pieces: the pieces, not the link). Per part:
+the downward-facing area (faces whose normal points down, n_z < -1e-6), the area needing
+support (faces leaning less than 45 deg from straight down, their part more than 0.3 mm
+above the bed, cut exactly at that height), its height and the least caliper width of the
+convex hull of the faces lying on the bed (z <= 0.05 mm).
 """
 
 from __future__ import annotations
@@ -109,6 +110,10 @@ def check_layout(ex) -> tuple[dict, list[str]]:
                                  f"{gap:.2f} mm apart < {PART_GAP_MM:g} mm")
     for part in ex.report.get("parts", []):
         name = part["name"]
+        if part.get("printed_as"):  # its pieces are printed (:mod:`printed_pieces`)
+            if name in seen:
+                fails.append(f"print: {name} is on a plate beside its pieces")
+            continue
         if seen.get(name, 0) != 1:
             fails.append(f"print: {name} is on {seen.get(name, 0)} plates (should be one)")
             continue

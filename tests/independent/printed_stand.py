@@ -91,7 +91,7 @@ def _masses(ex, dens: float, plate) -> tuple[list, list, dict, list[str]]:
             g = STEEL_G_MM3 * np.pi * p["radius_mm"] ** 2 * (s1 - s0)
             moving.append((int(jt["joint"]), g, o + a * (s0 + s1) / 2))  # on the axis
     for part in ex.report.get("parts", []):
-        if part["role"] in ("link", "base"):
+        if part["role"] in ("link", "base", "link piece"):  # a piece: in its link's mesh
             continue
         m = ex.mesh(part["name"])
         if part["name"].startswith("rod_cap"):
