@@ -63,6 +63,34 @@ def test_truly_degenerate_motions_are_refused(name):
     assert factor.REASONS[code] == reason
 
 
+@pytest.mark.parametrize("name", sorted(REFUSED))
+def test_polishing_hints_never_turn_a_refusal_into_factors(name):
+    """Hints (float64 roots, here the exact ones nudged) are only a shortcut to a generic
+    verdict: on a degenerate motion the companion matrix still decides and refuses."""
+    h, reason = REFUSED[name]
+    c, _ = poly.make_monic(poly.from_factors(h))
+    quads = factor.all_factorizations_batch(c).quadratics
+    hints = -quads[:, 1] / 2 + 1j * np.sqrt(np.maximum(quads[:, 0] - quads[:, 1] ** 2 / 4,
+                                                         1e-6)) + 1e-7
+    factors, _, code = exact.factorizations(c, factor._FLIP_PLAN, hints)
+    assert factors is None and factor.REASONS[code] == reason
+
+
+@pytest.mark.parametrize("y", [1e-3, 1e-9])
+def test_polished_factorizations_are_the_companion_matrix_ones(y):
+    """Polishing float64 roots by Newton's method (the shortcut for a generic motion whose
+    float64 factors are imprecise) gives the factorizations of the companion-matrix path."""
+    c, _ = poly.make_monic(_near_degenerate(y))
+    f = factor.all_factorizations_batch(c)
+    m0, m1 = f.quadratics[:, 0], f.quadratics[:, 1]
+    hints = -m1 / 2 + 1j * np.sqrt(m0 - m1 ** 2 / 4)
+    slow = exact.factorizations(c, factor._FLIP_PLAN)
+    fast = exact.factorizations(c, factor._FLIP_PLAN, hints)
+    assert slow[2] == fast[2] == 0
+    np.testing.assert_allclose(fast[0], slow[0], rtol=0, atol=1e-9 * np.abs(slow[0]).max())
+    np.testing.assert_allclose(fast[1], slow[1], rtol=1e-12)
+
+
 def test_real_quadratic_factor_is_refused():
     # C = (t^2 + 1)(t - h): P has a real polynomial factor
     c = poly.mul(poly.from_factors(np.array([I_, -I_])), poly.linear(2 * ONE + 3 * K_ + EI))

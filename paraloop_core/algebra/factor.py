@@ -443,6 +443,13 @@ def all_factorizations(c: np.ndarray) -> Factorizations:
     f = all_factorizations_batch(mono)
     if f.code == 0 and product_residual(f.factors, mono).max() <= TOL.factor_exact:
         return f
-    factors, quads, code = exact.factorizations(mono, _FLIP_PLAN)
+    # float64's roots seed a polishing that can only confirm genericity (a refusal is always
+    # the companion matrix's): three distinct simple upper roots and their conjugates are all
+    # six roots of the norm polynomial, so none is real and none repeated
+    m0, m1 = f.quadratics[..., 0], f.quadratics[..., 1]
+    with np.errstate(invalid="ignore"):
+        hints = -m1 / 2 + 1j * np.sqrt(np.maximum(m0 - m1 ** 2 / 4, 0.0))
+    hints = hints if np.all(np.isfinite(hints)) else None
+    factors, quads, code = exact.factorizations(mono, _FLIP_PLAN, hints)
     raise_for_code(code)
     return Factorizations(factors, quads, np.int8(0))
