@@ -214,7 +214,10 @@ def _export(sol: Solution, opts: Options, rhino: bool, simulate: bool,
             progress: Progress | None, job: StepJob
             ) -> tuple[list[tuple[str, bytes]], dict, Solution]:
     def submit(asm) -> None:  # the parts built: their STEP solids start on the helper
-        job.submit(asm, export_files.step_colors(asm), export_files.STEEL)
+        if asm is None:  # those handed are rebuilt: the helper stops its work on them
+            job.withdraw()
+        else:
+            job.submit(asm, export_files.step_colors(asm), export_files.STEEL)
 
     printed, chosen = make(sol, opts, printable.stage(progress, 0.0, 0.85), submit)
     if progress is not None:

@@ -14,7 +14,7 @@ from scipy.spatial.transform import Rotation
 
 from paraloop_core.algebra import dq, poly
 from paraloop_core.errors import FabricationError
-from paraloop_core.fabrication import check
+from paraloop_core.fabrication import check, keel
 from paraloop_core.linkage import loops
 
 
@@ -84,6 +84,31 @@ def test_a_part_moved_into_another_is_reported():
     hit = next(p for p in ver["pairs"] if p["links"] == [0, 3])
     assert hit["colliding_samples"] > 0 and hit["max_intersection_mm3"] > 0
     assert hit["continuous_min_gap_mm"] <= 0.0
+
+
+def test_a_verification_for_the_keels_takes_off_what_the_whole_one_does():
+    """With ``keels`` a pair of a keeled link stops at its first sample short of its gap, and
+    once one fails, the pairs that would take off no other keel are left out: the keels
+    taken off are the whole verification's; a pair short of its required gap at a sample is
+    refined only to prove it apart (still failing, apart)."""
+    asm = F.assembly("m3")
+    near = min((p for p in check.verify(asm, samples=16)["pairs"] if not p["adjacent"]),
+               key=lambda p: p["min_gap_mm"])
+    (a, b), need = near["links"], near["min_gap_mm"] + 1.0  # that pair short of it
+    gaps = asm.plan.gaps.copy()
+    gaps[a, b] = gaps[b, a] = need
+    asm = replace(asm, plan=replace(asm.plan, gaps=gaps))
+    whole = check.verify(asm, samples=16)
+    short = next(p for p in whole["pairs"] if p["links"] == [a, b])
+    assert 0.0 < short["continuous_min_gap_mm"] < need and short["min_gap_mm"] < need
+    assert not whole["gap_ok"] and whole["ok"] and "partial" not in whole
+    for keels in (np.eye(6)[b] * 2.0, np.eye(6)[a] + np.eye(6)[(b + 1) % 6] * 3.0,
+                  np.eye(6)[(b + 1) % 6]):
+        quick = check.verify(asm, samples=16, keels=list(keels))
+        off = keel.in_the_way(list(keels), whole["pairs"])
+        assert keel.in_the_way(list(keels), quick["pairs"]) == off
+        assert quick.get("partial", False) == bool(off)
+        assert len(quick["pairs"]) < 15 if off else quick["pairs"] == whole["pairs"]
 
 
 def test_few_samples_are_refined_until_the_cycle_is_proven():

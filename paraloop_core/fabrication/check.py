@@ -35,7 +35,7 @@ import numpy as np
 
 from paraloop_core.algebra import dq, poly
 from paraloop_core.errors import FabricationError
-from paraloop_core.fabrication import parts
+from paraloop_core.fabrication import keel, parts
 from paraloop_core.fabrication.assembly import Assembly
 from paraloop_core.fabrication.parts import part_trimesh
 from paraloop_core.linkage import loops
@@ -210,17 +210,22 @@ def _affine(m: np.ndarray) -> list:
 
 
 def _gaps(asm: Assembly, a: int, b: int, pa: list[_Piece], pb: list[_Piece],
-          u: np.ndarray, below: float) -> tuple[np.ndarray, np.ndarray, int]:
+          u: np.ndarray, below: float, stop: float | None = None
+          ) -> tuple[np.ndarray, np.ndarray, int]:
     """Gap (the capsule bound where that reaches ``below``, else exact), intersection volume
     ``(T,)`` and the number of exact checks, of pieces ``pa`` (link a) and ``pb`` (link b,
     moved) at ``u``. Exact gaps only between the pieces whose own capsules come within
-    ``below`` (a group's plate or hardware is not measured where only a bar comes close)."""
+    ``below`` (a group's plate or hardware is not measured where only a bar comes close).
+    With ``stop``, the closest bounds first and none after the first exact gap short of
+    ``stop`` (none, or less than it): the pair fails (the others keep their bound)."""
     poses = _mm_poses(asm, u)
     rel = np.linalg.inv(poses[:, a]) @ poses[:, b]
     lbs = _piece_bounds(pa, pb, rel)  # (A, B, T)
     lb = lbs.min(axis=(0, 1))
     gap, vol = lb.copy(), np.zeros(len(u))
-    for s in np.nonzero(lb < below)[0]:
+    near, n = np.nonzero(lb < below)[0], 0
+    for s in near[np.argsort(lb[near], kind="stable")]:
+        n += 1
         m = _affine(rel[s])
         vals = lbs[:, :, s].copy()
         for i, k in zip(*np.nonzero(vals < below), strict=True):
@@ -230,7 +235,9 @@ def _gaps(asm: Assembly, a: int, b: int, pa: list[_Piece], pb: list[_Piece],
             if vals[i, k] <= 0.0:
                 vol[s] = max(vol[s], (pa[i].solid ^ moved).volume())
         gap[s] = vals.min()
-    return gap, vol, int(np.sum(lb < below))
+        if stop is not None and (gap[s] <= 0.0 or gap[s] < stop - 1e-9):
+            break
+    return gap, vol, n
 
 
 def _subsamples(u: np.ndarray, idx: np.ndarray, counts: np.ndarray) -> np.ndarray:
@@ -299,8 +306,14 @@ def solid_info(asm: Assembly) -> list[dict]:
     return out
 
 
-def verify(asm: Assembly, samples: int = 720, progress: Progress | None = None) -> dict:
-    """The verification report (module docstring), JSON-ready."""
+def verify(asm: Assembly, samples: int = 720, progress: Progress | None = None,
+           keels: list[float] | None = None) -> dict:
+    """The verification report (module docstring), JSON-ready. ``keels`` (each link's keel,
+    mm): only the keels to take off (:func:`keel.in_the_way`) are wanted where one is (the
+    parts are then built again and verified anew): the pairs of a keeled link first, each
+    left as soon as it fails; once one has, the pairs whose failure would take off no other
+    keel (:func:`keel.deeper`: already taken off, or none) are left out and the report says
+    ``partial``."""
     if samples < 8:
         raise FabricationError("verification needs at least 8 samples", "bad-parameters")
     t0 = time.perf_counter()
@@ -314,8 +327,14 @@ def verify(asm: Assembly, samples: int = 720, progress: Progress | None = None) 
     jf = asm.joint_factors
     u0 = loops.cycle_samples(jf, samples)
     need = asm.plan.gaps
-    pairs_out, joint_gaps = [], []
-    for k, (a, b) in enumerate(itertools.combinations(range(6), 2)):
+    pairs_out, joint_gaps, off = [], [], set()
+    links = list(itertools.combinations(range(6), 2))
+    if keels is not None:  # the keeled pairs first (stable: each kind in order)
+        links.sort(key=lambda ab: not (keels[ab[0]] or keels[ab[1]]))
+    for k, (a, b) in enumerate(links):
+        keeled = keels is not None and bool(keels[a] or keels[b])
+        if off and (not keeled or keel.deeper(keels, [a, b]) in off):
+            continue
         if progress is not None:
             progress(k / 15, f"verifying links {a} and {b}")
         joint = a if b == a + 1 else (5 if (a, b) == (0, 5) else None)
@@ -337,20 +356,29 @@ def verify(asm: Assembly, samples: int = 720, progress: Progress | None = None) 
         search = required + 0.05
         cb = np.concatenate([q.caps for q in pb])
         rb = np.concatenate([q.radii for q in pb])
-        gap, vol, n_exact = _gaps(asm, a, b, pa, pb, u0, search)
+        stop = required if keeled else None  # a keel's pair: only whether it fails
+        gap, vol, n_exact = _gaps(asm, a, b, pa, pb, u0, search, stop)
         u, steps = u0, _Steps(asm, a, b, cb, rb)
         for _ in range(REFINE_ROUNDS):  # refine cells whose motion bound eats their margin
+            # a sample (exact there) at no gap or closer than the required one fails the pair
+            # whatever the cells between do (continuous <= gap - delta <= gap): refine only
+            # to prove the parts apart (cells short of the required gap spent every exact
+            # check on a verdict already taken), and a keel's pair not at all (it comes off)
+            short = gap.min() <= 0.0 or gap.min() < required - 1e-9
+            target = 0.0 if short else required
             delta = steps(u)
-            bad = _unproven(gap, delta, required)
+            if short and keeled:
+                break
+            bad = _unproven(gap, delta, target)
             if len(bad) and steps.tighten():  # the speed bound first, then finer samples
                 delta = steps(u)
-                bad = _unproven(gap, delta, required)
+                bad = _unproven(gap, delta, target)
             if not len(bad) or np.any(vol > 1e-9):
                 break
-            new = _subsamples(u, bad, np.ceil(2 * delta[bad] / (gap[bad] - required)))
+            new = _subsamples(u, bad, np.ceil(2 * delta[bad] / (gap[bad] - target)))
             if n_exact + len(new) > MAX_EXACT_CHECKS:
                 break
-            g_new, v_new, n_new = _gaps(asm, a, b, pa, pb, new, search)
+            g_new, v_new, n_new = _gaps(asm, a, b, pa, pb, new, search, stop)
             n_exact += n_new
             order = np.argsort(np.concatenate([u, new]))
             u = np.concatenate([u, new])[order]
@@ -367,6 +395,9 @@ def verify(asm: Assembly, samples: int = 720, progress: Progress | None = None) 
             "max_step_motion_mm": float(delta.max()), "samples": int(len(u)),
             "exact_checks": n_exact, "colliding_samples": int(np.sum(vol > 1e-9)),
             "max_intersection_mm3": float(vol.max())})
+        if keeled and keel.fails(pairs_out[-1]):
+            off.add(keel.deeper(keels, [a, b]))
+    pairs_out.sort(key=lambda p: p["links"])
     sound = all(p["watertight"] and p["manifold_status"] == "Error.NoError"
                 and p["pieces"] == 1 for p in info)
     collisions = sum(p["colliding_samples"] for p in pairs_out)
@@ -380,12 +411,14 @@ def verify(asm: Assembly, samples: int = 720, progress: Progress | None = None) 
         "gap_ok": bool(gap_ok), "watertight": sound, "samples": samples,
         "min_gap_mm": min(p["min_gap_mm"] for p in pairs_out),
         "continuous_min_gap_mm": cont,
-        "min_non_adjacent_gap_mm": min(p["continuous_min_gap_mm"] for p in pairs_out
-                                       if not p["adjacent"]),
-        "joint_clearance_mm": float(min(joint_gaps)), "collisions": int(collisions),
+        "min_non_adjacent_gap_mm": min((p["continuous_min_gap_mm"] for p in pairs_out
+                                        if not p["adjacent"]), default=np.inf),  # (partial)
+        "joint_clearance_mm": float(min(joint_gaps, default=np.inf)),
+        "collisions": int(collisions),
         "method": "gaps at evenly spaced u (and uniform in each norm factor's angle) by "
                   "capsule bounds, exact manifold3d min_gap where those come within the "
                   "required gap; continuous bound = gap - sound motion bound between samples; "
                   "two links of one joint without its zone, whose contents are solids of "
                   "revolution about the axis",
-        "parts": info, "pairs": pairs_out, "seconds": time.perf_counter() - t0}
+        "parts": info, "pairs": pairs_out, "seconds": time.perf_counter() - t0,
+        **({"partial": True} if off else {})}

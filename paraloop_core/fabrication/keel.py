@@ -110,14 +110,24 @@ def span(bar: np.ndarray, radius: float, down: np.ndarray, bottom: float,
     return (x0, x1) if x1 - x0 >= MIN_SHARE * length else None
 
 
+def fails(pair: dict) -> bool:
+    """Whether a pair of the verification (:func:`check.verify`) fails: a collision, no
+    positive gap, or less than the sizing's gap between links without a joint."""
+    cont = pair["continuous_min_gap_mm"]
+    return bool(pair["colliding_samples"] or cont <= 0 or cont < pair["required_gap_mm"] - 1e-9)
+
+
 def in_the_way(depths: list[float], pairs: list[dict]) -> frozenset:
     """The keels to take off: for each pair of the verification's ``pairs``
     (:func:`check.verify`) that fails (a collision, no positive gap, or less than the
     sizing's gap between links without a joint), the deeper keel of its two links (the first
     link's of equals; none if neither has one; ``depths`` each link's keel, mm). A second
     round takes the other where the pair still fails."""
-    failed = [p["links"] for p in pairs
-              if p["colliding_samples"] or p["continuous_min_gap_mm"] <= 0
-              or p["continuous_min_gap_mm"] < p["required_gap_mm"] - 1e-9]
-    deeper = (max(pair, key=lambda i: (depths[i], -i)) for pair in failed)
-    return frozenset(i for i in deeper if depths[i])
+    return frozenset(i for i in (deeper(depths, p["links"]) for p in pairs if fails(p))
+                     if depths[i])
+
+
+def deeper(depths: list[float], links: list[int]) -> int:
+    """Of a pair's two ``links``, the one whose keel :func:`in_the_way` takes off where the
+    pair fails: the deeper keel (the first link's of equals)."""
+    return max(links, key=lambda i: (depths[i], -i))

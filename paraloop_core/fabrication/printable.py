@@ -248,8 +248,9 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
          drive: DriveSettings | None = None, progress: Progress | None = None,
          on_parts: Callable[[Assembly], None] | None = None) -> Printed:
     """The printable loop (module docstring); ``on_parts(assembly)`` is called with the parts
-    before their verification (the export starts its STEP solids then), and again with the
-    final parts where a keel the verification failed was taken off."""
+    before their verification (the export starts its STEP solids then), with None as soon as
+    that verification takes a keel off (those parts are not the ones kept), and again with
+    the final parts."""
     opts = opts or Options()
     ranked, tried = choose(candidates, opts, stage(progress, 0.0, 0.25))
     if progress is not None:
@@ -259,7 +260,8 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
     # first (_built_score)
     built, error, handed = [], None, []
 
-    def hand(asm: Assembly) -> None:  # the parts to the STEP helper, again where they changed
+    def hand(asm: Assembly | None) -> None:  # the parts to the STEP helper, again where they
+        # changed; None: the parts handed are rebuilt (their solids are not wanted)
         if on_parts is not None and (not handed or handed[-1] is not asm):
             handed.append(asm)
             on_parts(asm)
@@ -279,7 +281,7 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
             # its keels verified before it is taken: one taken off leaves its link over
             # supports, and the next candidate may lie flat
             hand(asm)
-            x = _settled(x, opts, progress, tried)
+            x = _settled(x, opts, progress, tried, lambda: hand(None))
             asm, b = x.asm, x.base
         built.append(x)
         if _accepted(asm, b, opts):
@@ -299,7 +301,7 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
     x = max(built, key=lambda x: _built_score(x, opts.ground))
     hand(x.asm)  # the STEP solids start before the verification (again if a keel comes off)
     if x.ver is None:
-        x = _settled(x, opts, progress, tried)
+        x = _settled(x, opts, progress, tried, lambda: hand(None))
     cand, real, ee, plan, asm, ee_method, b, warnings, ver = x
     hand(asm)
     lifted = _lifted(asm)
@@ -389,16 +391,24 @@ def _grounded(asm: Assembly, opts: Options, progress: Progress | None, label: st
     return stand.ground(asm, opts)
 
 
-def _settled(x: _Built, opts: Options, progress: Progress | None, tried: list[str]) -> _Built:
+def _settled(x: _Built, opts: Options, progress: Progress | None, tried: list[str],
+             drop: Callable[[], None] | None = None) -> _Built:
     """A built candidate ``x`` with its verification, after narrowing or taking off the keels
     it fails (:func:`keel.in_the_way`; the candidate rebuilt so, grounded and verified again;
-    at most :data:`KEEL_ROUNDS` times): a link without its keel then prints over supports."""
+    at most :data:`KEEL_ROUNDS` times): a link without its keel then prints over supports.
+    ``drop()`` is called when the first keel comes off (the parts handed for their STEP
+    solids are not kept)."""
     cand, real, ee, plan, asm, ee_method, b, warnings, _ = x
-    ver = check.verify(asm, opts.samples, progress=stage(progress, 0.45, 0.95))
-    for _ in range(KEEL_ROUNDS):
+    # while a round is left, a keel that fails ends the verification (check.verify's keels):
+    # the parts are built again without it; the parts kept get the whole verification
+    ver = check.verify(asm, opts.samples, progress=stage(progress, 0.45, 0.95),
+                       keels=[p.keel_mm for p in asm.links])
+    for n in range(KEEL_ROUNDS):
         blocked = keel.in_the_way([p.keel_mm for p in asm.links], ver["pairs"])
         if not blocked:
             break
+        if drop is not None and n == 0:
+            drop()
         levels = tuple(max(k - 1, keel.NONE) if i in blocked else k
                        for i, k in enumerate(asm.keel_levels))
         tried.append(f"{cand.label}: the keel of link{'s' * (len(blocked) > 1)} "
@@ -407,7 +417,9 @@ def _settled(x: _Built, opts: Options, progress: Progress | None, tried: list[st
                                  for i in sorted(blocked)))
         asm, plan, ee_method = _fit_and_build(real, ee, plan, opts, levels)
         asm, b, warnings = _grounded(asm, opts, progress, cand.label)
-        ver = check.verify(asm, opts.samples, progress=stage(progress, 0.45, 0.95))
+        ver = check.verify(asm, opts.samples, progress=stage(progress, 0.45, 0.95),
+                           keels=None if n == KEEL_ROUNDS - 1 else
+                           [p.keel_mm for p in asm.links])
     return _Built(cand, real, ee, plan, asm, ee_method, b, warnings, ver)
 
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 import copyreg
 import os
 import pickle
+import signal
 import subprocess
 import sys
 import threading
@@ -157,6 +158,14 @@ class StepJob:
                                         daemon=True)
         self._reader.start()
 
+    def withdraw(self) -> None:
+        """The parts handed are not kept (rebuilt without a keel): their helper is stopped
+        (its solids took the core the rebuild runs on; each verification uses both) and a
+        new one loads OpenCascade meanwhile, for the next parts handed."""
+        if self._sent:
+            self.close()
+            self._start()
+
     def result(self, asm, colors: dict[str, np.ndarray], steel: np.ndarray
                ) -> tuple[list[tuple[str, bytes]], dict[str, str]]:
         """``(files, kinds)`` of :func:`step.step_files` for ``asm``: the helper's when it
@@ -177,7 +186,12 @@ class StepJob:
         """Stop the helper (it holds nothing worth keeping once this is asked)."""
         if self._proc is not None:
             if self._proc.poll() is None:
-                self._proc.kill()
+                # its session: the helper and the copy it forked (which holds the answer's
+                # pipe open: closing it would wait for that copy's solids, made for nothing)
+                try:
+                    os.killpg(self._proc.pid, signal.SIGKILL)
+                except (AttributeError, OSError):  # no process groups: the helper alone
+                    self._proc.kill()
             self._proc.wait()
             for pipe in (self._proc.stdin, self._proc.stdout):
                 pipe.close()
