@@ -164,3 +164,59 @@ def test_closed_end_effector_is_oriented():
         el = endlink.end_link(ee, np.zeros((12, 3)))
         assert el.method == "closed"
         assert endlink.solid_manifold(el, 10.0).volume() == pytest.approx(100.0, rel=1e-5)
+
+
+def test_sizing_rows_of_the_end_effector_bound_it_over_the_cycle(sol, made):
+    """``rows.ee_rows``: the certificate's rows of P and link 3's bars, and those bars against
+    their neighbours' bars across joints 2 and 3 (proven by ``verify.pair_bounds``; the
+    certificate leaves them to the joint, and on arc-sculpture with a panel the sizing grew
+    link 2's bar into link 3's: 1326 mm^3, the export refused). The new rows are lower bounds
+    of a dense sampling (independent segment distances), and the plan keeps every row."""
+    from independent.segdist import segment_distance
+
+    from paraloop_core.fabrication import rows
+
+    ee = sol.end_effector
+    kinds, low, reach = rows.ee_rows(ee)
+    assert len(kinds) == len(low) and reach == 0.0  # a closed P
+    real = ee.realization
+    s3, left, right, e3 = ee.end_link()
+    t = np.tan(np.linspace(-np.pi / 2, np.pi / 2, 4001)[1:-1])
+    poses = loops.link_poses(real.joint_factors, t)  # (T, 6, 8)
+    pts = real.points
+    for (part, e, link), lo, (a, b) in zip(kinds[-2:], low[-2:], ((s3, left), (right, e3)),
+                                           strict=True):
+        assert (part, e) == (3, 8 if link == 4 else 4)
+        rel = dq.mul(dq.conj(poses[:, link]), poses[:, 3])  # link 3 seen from the neighbour
+        ends = dq.transform_points(rel[:, None], np.stack([a, b])[None])
+        d = segment_distance(np.broadcast_to(pts[e], ends[:, 0].shape),
+                             np.broadcast_to(pts[e + 1], ends[:, 0].shape), ends[:, 0],
+                             ends[:, 1])
+        assert lo <= d.min() + 1e-9 and lo > 0.5 * d.min()
+    b = rows.bounds_of(made.realization, made.effector)  # the printed loop (realized again)
+    k, r = made.assembly.plan.scale, made.assembly.plan.radii
+    for (part, e, _), lo in zip(b.ee_rows, b.ee_lower, strict=True):
+        if part == 3 and e % 2 == 0:  # bar against bar: both capsules fit in the bound
+            assert r[3] + r[e // 2] <= k * lo + 1e-6
+
+
+def test_a_panel_on_arc_sculpture_exports_verified(tmp_path):
+    """arc-sculpture carrying the shading panel: its link 2's bar was sized into link 3's bar
+    across joint 2 (no row held them apart) and the export ended "verification failed"
+    (exit 3); with :func:`rows.ee_rows` it exports verified."""
+    import json
+    import subprocess
+    import sys
+
+    root = Path(__file__).resolve().parents[1]
+    d = json.loads((root / "assets" / "designs" / "arc-sculpture.json").read_text())
+    d["end_effector"] = {"mesh": str(root / "assets" / "meshes" / "shading-panel.stl"),
+                         "scale": 1.0}
+    path = tmp_path / "arc-panel.json"
+    path.write_text(json.dumps(d))
+    run = subprocess.run([sys.executable, "-m", "app.cli.main", "export", str(path), "--out",
+                          str(tmp_path / "out"), "--quiet"], cwd=root, capture_output=True,
+                         text=True, timeout=900)
+    assert run.returncode == 0, run.stderr[-600:]
+    report = json.loads((tmp_path / "out" / "report.json").read_text())
+    assert report["verification"]["ok"] and report["verification"]["collisions"] == 0

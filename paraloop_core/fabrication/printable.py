@@ -136,7 +136,7 @@ def _plan(real: Realization, opts: Options, size_mm: float | None = None,
             p = sizing.plan(real, opts.printer, opts.material, kind, opts.rod,
                             size_mm=size_mm or opts.size_mm,
                             fit=lambda q: bed.predicted_fit(q, real.points, opts.printer,
-                                                             extra))
+                                                             extra), ee=ee)
         except FabricationError as exc:
             error = error or exc
             continue
@@ -240,7 +240,7 @@ def _fit_and_build(real: Realization, ee: object | None, plan: sizing.Plan, opts
         if grow >= 1.0 or opts.size_mm is not None:
             break
         plan = sizing.plan(real, opts.printer, opts.material, plan.kind, opts.rod,
-                           size_mm=plan.size_mm * min(grow, 0.99))
+                           size_mm=plan.size_mm * min(grow, 0.99), ee=ee)
     return asm, plan, None if el is None else el.method
 
 

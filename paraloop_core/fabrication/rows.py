@@ -15,7 +15,7 @@ x_b`` for every row: one small linear programme in the twelve radii (:func:`radi
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.optimize import linprog
@@ -33,7 +33,10 @@ class Bounds:
     """A realization's certified bounds (design units): ``points`` ``(12, 3)``, ``rows``
     ``(N, 4)`` (edge, edge, link, link) with ``lower`` ``(N,)``, consecutive bars
     ``joint_lower`` ``(6,)``, consecutive pins at home ``pin_pin`` ``(6,)`` (joint j with j+1),
-    ``extent`` (longest side of the polyline's box), the joint ``axes`` ``(6, 6)``."""
+    ``extent`` (longest side of the polyline's box), the joint ``axes`` ``(6, 6)``; with an
+    end-effector its certified rows ``ee_rows`` ``(M, 3)`` (link 3's part: 3 a bar ``S_3 L``
+    or ``R E_3``, -1 P itself; an edge; that edge's link) with ``ee_lower`` ``(M,)``, and how
+    far (mm) P's solid reaches past its surface ``ee_reach`` (a sheet's half thickness)."""
 
     points: np.ndarray
     rows: np.ndarray
@@ -42,14 +45,18 @@ class Bounds:
     pin_pin: np.ndarray
     extent: float
     axes: np.ndarray
+    ee_rows: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), int))
+    ee_lower: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    ee_reach: float = 0.0
 
     @property
     def bar_lengths(self) -> np.ndarray:
         return np.linalg.norm(self.points[1::2] - self.points[0::2], axis=-1)
 
 
-def bounds_of(real) -> Bounds:
-    """:class:`Bounds` of a ``certified.Realization``."""
+def bounds_of(real, ee=None) -> Bounds:
+    """:class:`Bounds` of a ``certified.Realization`` (with the rows of its end-effector
+    realization ``ee``: :func:`ee_rows`)."""
     from paraloop_core.realization.clearance import segment_distance
 
     pts = np.asarray(real.points, float)
@@ -62,7 +69,40 @@ def bounds_of(real) -> Bounds:
     e, s = pts[1::2], np.roll(pts[0::2], -1, axis=0)  # pin j: E_j -> S_{j+1}
     pp = segment_distance(e, s, np.roll(e, -1, axis=0), np.roll(s, -1, axis=0))
     return Bounds(pts, np.asarray(real.pairs), low, jl, np.asarray(pp, float),
-                  float(np.max(np.ptp(pts, axis=0))), loops.factor_axes(real.joint_factors))
+                  float(np.max(np.ptp(pts, axis=0))), loops.factor_axes(real.joint_factors),
+                  *(() if ee is None else ee_rows(ee)))
+
+
+def ee_rows(ee) -> tuple[np.ndarray, np.ndarray, float]:
+    """The rows an end-effector realization certifies (``ee_certificate``: the bars ``S_3 L``,
+    ``R E_3`` and P against every edge of the other links, exact minima over the cycle), and
+    those two bars against the neighbouring bars across their joints (proven here), as
+    ``(rows (M, 3), lower (M,), reach)`` of :class:`Bounds`; those within link 3 (static) left
+    out. Without them the sizing grew a neighbour's bar into P (the verification refused)."""
+    from paraloop_core.fabrication.parts import MIN_WALL_MM
+    from paraloop_core.realization import verify
+    from paraloop_core.realization.ee_certificate import BASE_PAIRS, MESH, STEP4_ROWS
+
+    out, low = [], []
+    for (part, edge, (la, lb), _), d in zip(STEP4_ROWS[len(BASE_PAIRS):], ee.ee_distance,
+                                            strict=True):
+        if la != lb:
+            out.append((-1 if part[0] == MESH else 3, edge[0], lb))
+            low.append(float(d))
+    # the bars S_3 L and R E_3 against their neighbours' bars across joints 2 and 3, which the
+    # certificate leaves to the joint (the paper's links meet there): proven here as the
+    # consecutive bars of a plain realization are (certified.joint_bounds)
+    real = ee.realization
+    pts, (s3, left, right, e3) = np.asarray(real.points, float), ee.end_link()
+    fixed = np.stack([pts[[4, 5]], pts[[8, 9]]])  # S_2 E_2, S_4 E_4
+    moving = np.stack([[s3, left], [right, e3]])
+    bounds = verify.pair_bounds(real.joint_factors, fixed, moving, np.array([[2, 3], [4, 3]]),
+                                1e-3 * real.length)
+    out += [(3, 4, 2), (3, 8, 4)]
+    low += list(bounds.lower - real.reading_gap)
+    # an open P prints thickened by endlink.SHEET_MM (= MIN_WALL_MM), half on each side
+    reach = 0.0 if ee.effector.closed else MIN_WALL_MM / 2
+    return np.array(out, int).reshape(-1, 3), np.array(low), reach
 
 
 def radii(b: Bounds, k: float, rmin: np.ndarray, rcap: float | np.ndarray, bmin: float,
@@ -94,6 +134,9 @@ def radii(b: Bounds, k: float, rmin: np.ndarray, rcap: float | np.ndarray, bmin:
 
     for (e1, e2, la, lb), low in zip(b.rows, b.lower, strict=True):
         add(shapes(int(e1)), shapes(int(e2)), k * low - gaps[la, lb])
+    for (part, e, lb), low in zip(b.ee_rows, b.ee_lower, strict=True):  # link 3's P and bars
+        add([(3, 0.0)] if part == 3 else [(None, b.ee_reach)], shapes(int(e)),
+            k * low - gaps[3, lb])
     for i in range(6):  # consecutive bars i, i+1 and consecutive pins i, i+1
         j = (i + 1) % 6
         if np.isfinite(b.joint_lower[i]):

@@ -285,13 +285,14 @@ def _fixed_point(real, b: Bounds, k: float, printer: Printer, material: Material
 
 
 def plan(real, printer: Printer, material: Material, kind: str, rod: Rod, *,
-         size_mm: float | None = None, eps: float = 0.05, fit=None) -> Plan:
+         size_mm: float | None = None, eps: float = 0.05, fit=None, ee=None) -> Plan:
     """The :class:`Plan` (module docstring) of a realization: the first :data:`LEVELS` level
     met at some size, at the largest such size whose predicted parts fit the bed
     (``fit(plan) -> factor``: by how much the parts may still grow, <= 1 when they do not
     fit), shrinking by :data:`SHRINK` down to :data:`MIN_SIZE_MM`; at ``size_mm`` if given.
-    Raises :class:`FabricationError` when no level is met at any size tried."""
-    b = bounds_of(real)
+    Raises :class:`FabricationError` when no level is met at any size tried. ``ee``: the
+    end-effector realization whose rows bound link 3's P and bars too."""
+    b = bounds_of(real, ee)
     matrix = stiffness.torque_matrix(real)
     rest = stiffness.easiest_rest(real, matrix)
     if size_mm is None and not _any_size(real, b, printer, material, kind, rod, eps, matrix,
