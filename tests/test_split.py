@@ -53,7 +53,10 @@ def test_panel_link_prints_in_pieces_that_make_it_up(panel_export):
     bom = " ".join(r["item"] for r in ex.report["bill_of_materials"])
     assert f"{split.DOWEL_D_MM:g} mm steel dowel pin (ISO 8734), {split.DOWEL_L_MM:g} mm" in bom
     guide = (panel_export / "assembly.md").read_text()
-    assert "Glue link 3 together from link_3_arm_1, link_3_arm_2, link_3_end" in guide
+    assert "Glue link 3 together (1 of 2)" in guide and "Glue link 3 together (2 of 2)" in guide
+    for k in (1, 2):  # each with its exploded picture: arm, pin, end along the bar
+        assert f"![step {k}](guide_glue_3_{k}.png)" in guide
+        assert (panel_export / f"guide_glue_3_{k}.png").stat().st_size > 10_000
     assert not any("link_3" in w and "support" in w for w in ex.report["warnings"])
 
 

@@ -100,7 +100,9 @@ def guide_text(asm, report: dict, material: profiles.Material, pictures: dict[st
     elif "peak_torque_n_m" in d:
         summary.append(f"Motor (optional): on joint {d['motor']}, at least "
                        f"{d['peak_torque_n_m']:.2f} N m against gravity.")
-    steps = [(_pieces_text(p), None) for p in report["parts"] if "printed_as" in p]
+    steps = [(text, pictures.get(f"glue_{p['link']}_{k + 1}"))
+             for p in report["parts"] if "printed_as" in p
+             for k, text in enumerate(_pieces_text(p))]
     grounded = None if b is None else b["grounded_link"]
     order = assembly_order(asm.joints)
     for k, j in enumerate(order):
@@ -117,15 +119,15 @@ def guide_text(asm, report: dict, material: profiles.Material, pictures: dict[st
     return {"summary": [s for s in summary if s], "steps": steps}
 
 
-def _pieces_text(part: dict) -> str:
-    """The gluing step of a link printed in pieces (:mod:`split`)."""
-    names = part["printed_as"]["pieces"]
-    n = len(part["printed_as"]["dowels"])
-    return (f"Glue {part['name'].replace('_', ' ')} together from {', '.join(names)}: glue a "
-            f"{part['printed_as']['dowels'][0]['pin']} halfway into the end bore of each arm "
-            f"({n} pins), then push each arm onto its bore in {names[-1]}, the cut faces flat "
-            "on each other and the hexagon's faces in line, with glue on the faces; let it set "
-            "before the joints are assembled.")
+def _pieces_text(part: dict) -> list[str]:
+    """The gluing steps of a link printed in pieces (:mod:`split`), one per dowel pin."""
+    name = part["name"].replace("_", " ")
+    return [f"Glue {name} together ({k + 1} of {len(part['printed_as']['dowels'])}): glue a "
+            f"{dw['pin'].replace(', glued', '')} halfway into the bore at the end of "
+            f"{dw['pieces'][0]}, then push it into the bore of {dw['pieces'][1]}, glue on the "
+            "cut faces, the faces flat on each other and the hexagon's sides in line; let it "
+            "set before the joints are assembled."
+            for k, dw in enumerate(part["printed_as"]["dowels"])]
 
 
 def print_settings(printer: profiles.Printer, material: profiles.Material) -> list[str]:
@@ -166,11 +168,12 @@ def pages(printed, meshes: dict, placements: list, opts, report: dict
     """``assembly.md``, ``assembly.html`` and their pictures (:mod:`guide_pictures`) of a
     printed loop (:mod:`printable`)."""
     asm = printed.assembly
-    shots = guide_pictures.assembly_pictures(asm)
+    shots = guide_pictures.assembly_pictures(asm, report["parts"], meshes)
     names = {n: n for n, _ in shots}
     pictures = {"loop": names.get("guide_loop.png"), "base": names.get("guide_base.png")}
     pictures.update({f"joint_{j.index}": names.get(f"guide_joint_{j.index}.png")
                      for j in asm.joints})
+    pictures.update({n[6:-4]: n for n in names if n.startswith("guide_glue_")})
     text = guide_text(asm, report, opts.material, pictures)
     title = "Assembly guide: a paradoxical 6R loop that turns inside out"
     settings = print_settings(opts.printer, opts.material)

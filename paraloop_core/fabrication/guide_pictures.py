@@ -326,10 +326,40 @@ def _groups(asm: Assembly, jt, meshes: dict, world: np.ndarray
     return groups
 
 
-def assembly_pictures(asm: Assembly) -> list[tuple[str, bytes]]:
-    """:func:`assembly_scenes` rendered: ``(file name, PNG bytes)``, two at a time (the
-    renderer's numpy and Pillow work runs outside the interpreter lock)."""
-    scenes = assembly_scenes(asm)
+def glue_scenes(asm: Assembly, parts: list[dict], meshes: dict[str, trimesh.Trimesh]
+                ) -> list[tuple[str, Scene]]:
+    """``guide_glue_<link>_<k>.png``: each dowel of a link printed in pieces (report
+    ``parts``' ``printed_as``, :mod:`split`; ``meshes`` the pieces, home frame) pulled apart
+    along the bar: the arm, the steel pin, the end piece."""
+    world = np.eye(4) if asm.base is None else asm.base.world_from_home()
+    rot, out = world[:3, :3], []
+    for part in parts:
+        spec = part.get("printed_as")
+        for k, dw in enumerate(spec["dowels"] if spec else []):
+            arm, end = dw["pieces"]
+            axis = rot @ np.asarray(dw["axis"], float)
+            at = rot @ np.asarray(dw["origin_mm"], float) + world[:3, 3]
+            depth = max(dw["depth_mm"])
+            pin = trimesh.creation.cylinder(radius=float(dw["pin"].split()[0]) / 2,
+                                            segment=[at - depth * axis, at + depth * axis])
+            color = _rgb(LINK_COLORS[part["link"]])
+            groups = [([Piece(arm.replace("_", " "), meshes[arm].copy().apply_transform(world),
+                              color, focus=True)], -3.0 * depth),
+                      ([Piece("dowel pin", pin, PIN_COLOR, focus=True)], -1.5 * depth),
+                      ([Piece(end.replace("_", " "), meshes[end].copy().apply_transform(world),
+                              color, alpha=0.6)], 0.0)]
+            out.append((f"guide_glue_{part['link']}_{k + 1}.png", exploded_scene(groups, Joint(
+                0, at, axis, -depth, depth, 2.0 * depth, name="the bar's axis"))))
+    return out
+
+
+def assembly_pictures(asm: Assembly, parts: list[dict] | None = None,
+                      meshes: dict[str, trimesh.Trimesh] | None = None
+                      ) -> list[tuple[str, bytes]]:
+    """:func:`assembly_scenes` (and with the report's ``parts`` and the export's ``meshes``
+    :func:`glue_scenes`) rendered: ``(file name, PNG bytes)``, two at a time (the renderer's
+    numpy and Pillow work runs outside the interpreter lock)."""
+    scenes = assembly_scenes(asm) + (glue_scenes(asm, parts, meshes) if parts else [])
     with ThreadPoolExecutor(max_workers=2) as pool:
         pngs = list(pool.map(lambda ns: ns[1].png(), scenes))
     return [(name, png) for (name, _), png in zip(scenes, pngs, strict=True)]
