@@ -28,7 +28,7 @@ import manifold3d as m3d
 import numpy as np
 import trimesh
 
-from paraloop_core.fabrication.parts import MIN_WALL_MM
+from paraloop_core.fabrication.profiles import MIN_WALL_MM
 from paraloop_core.fabrication.voxelspace import VoxelSpace, point_segment_distance
 from paraloop_core.realization.endeffector import EndEffector
 from paraloop_core.realization.facecollide import inside_closed, point_triangle_distance

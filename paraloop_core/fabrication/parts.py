@@ -38,8 +38,6 @@ from paraloop_core.fabrication.voxelspace import point_segment_distance
 SEGMENTS = 48
 #: Margin (mm) of every cut past what it clears: the polygon error of the round solids.
 EPS_MM = 0.05
-#: Thinnest printed wall anywhere (mm): sheets of an open end-effector are this thick.
-MIN_WALL_MM = 0.8
 #: Added to a capsule's radius (mm) where the solid's own corners lie on it (a keel's box,
 #: the base plate's rim): the mesh's rounding may put them a hair outside.
 CAPSULE_SLACK_MM = 1e-4

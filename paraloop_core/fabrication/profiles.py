@@ -21,6 +21,9 @@ import numpy as np
 
 from paraloop_core.errors import FabricationError
 
+#: Thinnest printed wall anywhere (mm): sheets of an open end-effector are this thick.
+MIN_WALL_MM = 0.8
+
 
 @dataclass(frozen=True)
 class Printer:

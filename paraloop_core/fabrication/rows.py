@@ -22,6 +22,7 @@ from scipy.optimize import linprog
 
 from paraloop_core.errors import FabricationError
 from paraloop_core.fabrication import joints
+from paraloop_core.fabrication.profiles import MIN_WALL_MM
 from paraloop_core.linkage import loops
 
 #: Boss radius per bar corner radius: room for a fillet of a quarter of the bar.
@@ -79,7 +80,6 @@ def ee_rows(ee) -> tuple[np.ndarray, np.ndarray, float]:
     those two bars against the neighbouring bars across their joints (proven here), as
     ``(rows (M, 3), lower (M,), reach)`` of :class:`Bounds`; those within link 3 (static) left
     out. Without them the sizing grew a neighbour's bar into P (the verification refused)."""
-    from paraloop_core.fabrication.parts import MIN_WALL_MM
     from paraloop_core.realization import verify
     from paraloop_core.realization.ee_certificate import BASE_PAIRS, MESH, STEP4_ROWS
 
