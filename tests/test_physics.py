@@ -154,7 +154,24 @@ def test_contacts_between_non_adjacent_links_are_reported():
     assert first["first_time_s"] < 0.01 and first["max_depth_mm"] > 1.0
     assert rep.non_adjacent_contacts > 0 and not rep.ok
     assert "pendulum" in rep.unchecked_bodies and "block_3" not in rep.unchecked_bodies
+    assert first["parts_gap_mm"] == 0.0  # the blocks themselves overlap
     json.dumps(rep.to_dict(), allow_nan=False)
+
+
+def test_a_contact_of_the_convex_pieces_only_is_not_a_contact_of_the_parts():
+    """The convex pieces contain the parts (capsule hulls): where only they touch (random
+    62205: link 2's hulls reached 1.66 mm into the rod's cap, the parts 1.39 mm apart), the
+    parts' own meshes are measured and the pair is reported, not counted."""
+    far = np.array([300.0, 300.0, 300.0])
+    blocks = (Body("block_0", 0, _box(far, [20, 20, 20]), LIGHT, (_box(far, [20, 20, 20]),)),
+              Body("block_3", 3, _box(far + 24, [20, 20, 20]), LIGHT,
+                   (_box(far + 24, [34, 34, 34]),)))  # its piece 7 mm past it on each side
+    model = pendulum_model([0.0, 0.0, 1.0], extra=blocks)[0]
+    rep = physics.simulate(model, anchored=True)
+    (pair,) = rep.contact_pairs
+    assert pair["bodies"] == ["block_0", "block_3"] and pair["max_depth_mm"] > 1.0
+    assert pair["parts_gap_mm"] == pytest.approx(4.0 * np.sqrt(3.0), rel=1e-3)  # corner to corner
+    assert rep.non_adjacent_contacts == 0 and rep.ok
 
 
 @pytest.fixture(scope="module")
