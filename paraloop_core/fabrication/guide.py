@@ -173,7 +173,8 @@ def pages(printed, meshes: dict, placements: list, opts, report: dict
     pictures = {"loop": names.get("guide_loop.png"), "base": names.get("guide_base.png")}
     pictures.update({f"joint_{j.index}": names.get(f"guide_joint_{j.index}.png")
                      for j in asm.joints})
-    pictures.update({n[6:-4]: n for n in names if n.startswith("guide_glue_")})
+    pictures.update({n.removeprefix("guide_").removesuffix(".png"): n for n in names
+                     if n.startswith("guide_glue_")})
     text = guide_text(asm, report, opts.material, pictures)
     title = "Assembly guide: a paradoxical 6R loop that turns inside out"
     settings = print_settings(opts.printer, opts.material)

@@ -71,7 +71,6 @@ import math
 import time
 from dataclasses import asdict, dataclass
 
-import manifold3d as m3d
 import mujoco
 import numpy as np
 from scipy.interpolate import CubicSpline
@@ -81,6 +80,7 @@ from paraloop_core.errors import FabricationError
 from paraloop_core.fabrication import mjcf as mjcf_mod
 from paraloop_core.fabrication import physics_measure as measure
 from paraloop_core.fabrication.mjcf import mjcf
+from paraloop_core.fabrication.parts import mesh_manifold
 from paraloop_core.fabrication.physics_model import (
     GRAVITY_WORLD,
     M_PER_MM,
@@ -373,13 +373,14 @@ def _report(model: PhysicsModel, tree: mjcf_mod.Tree, run: _Run,
         tilt, lift, slide = measure.base_motion(model, run.root, settled)
         stands = tilt <= TILT_LIMIT_DEG and lift <= LIFT_LIMIT_MM
         clearance = measure.table_clearance(model, poses[np.round(times[reached] / dt).astype(int)])
+    gaps = {p: _parts_gap(model, poses, p, r[4]) for p, r in run.contacts.items()}
     pairs = tuple({"bodies": list(p), "steps": r[0], "first_time_s": r[1] * dt,
-                   "max_depth_mm": r[2], "parts_gap_mm": _parts_gap(model, poses, p, r[4])}
+                   "max_depth_mm": r[2], "parts_gap_mm": gaps[p]}
                   for p, r in sorted(run.contacts.items()))
     # the convex pieces contain the parts: only a contact of the parts themselves counts
     touching = np.zeros(n, bool)
-    for q, (_, r) in zip(pairs, sorted(run.contacts.items()), strict=True):
-        if q["parts_gap_mm"] <= 0.0:
+    for p, r in run.contacts.items():
+        if gaps[p] <= 0.0:
             touching[[k for k in r[4] if k < n]] = True
     contacts = int(touching.sum())
     curve_t = np.linspace(0.0, times[-1], CURVE_SAMPLES) if held is None else np.zeros(0)
@@ -414,8 +415,7 @@ def _parts_gap(model: PhysicsModel, poses: np.ndarray, bodies: tuple[str, str],
     solids = []
     for name in bodies:
         b = by[name]
-        solids.append((m3d.Manifold(m3d.Mesh(np.asarray(b.mesh.vertices, np.float32),
-                                             np.asarray(b.mesh.faces, np.uint32))),
+        solids.append((mesh_manifold(b.mesh.vertices, b.mesh.faces),
                        model.grounded_link if b.link < 0 else b.link))
     pick = np.unique(np.linspace(0, len(steps) - 1, min(EXACT_STEPS, len(steps))).astype(int))
     gap = np.inf

@@ -90,21 +90,24 @@ class Split:
                            for d in self.dowels]}
 
 
-def _tm(man: m3d.Manifold) -> trimesh.Trimesh:
-    return parts.part_trimesh(man)
+_tm = parts.part_trimesh
+
+
+def _components(man: m3d.Manifold) -> list[m3d.Manifold]:
+    """The solid's components of volume (booleans on coplanar faces leave slivers of none)."""
+    return [m for m in man.decompose() if m.volume() > 1e-3]
 
 
 def _one(man: m3d.Manifold) -> m3d.Manifold | None:
-    """The solid's one component of volume (booleans on coplanar faces leave slivers of none),
-    or None where it falls into more."""
-    big = [m for m in man.decompose() if m.volume() > 1e-3]
+    """The solid's one component of volume, or None where it falls into more."""
+    big = _components(man)
     return big[0] if len(big) == 1 else None
 
 
 def _nearest(man: m3d.Manifold, point: np.ndarray) -> m3d.Manifold:
     """The component of ``man`` (of volume) nearest ``point``."""
-    big = [m for m in man.decompose() if m.volume() > 1e-3]
-    return min(big, key=lambda m: np.linalg.norm(_tm(m).vertices - point, axis=1).min())
+    return min(_components(man), key=lambda m: np.linalg.norm(
+        m.to_mesh().vert_properties[:, :3] - point, axis=1).min())
 
 
 def _share(mesh: trimesh.Trimesh, down: np.ndarray) -> float:
