@@ -11,6 +11,7 @@ assets/designs/sun-path-fit.json --out DIR`` when the export's format changes).
 from __future__ import annotations
 
 import json
+import re
 import shutil
 import subprocess
 import sys
@@ -175,6 +176,34 @@ def test_random_designs_export_whole_bars_and_a_base_that_stands(seed, tmp_path)
     report = json.loads((tmp_path / f"random-{seed}" / "report.json").read_text())
     assert report["base"]["stands"] and report["mount"] is None
     assert not any(any(j["bar_cut"]) for j in report["joints"])
+
+
+def test_a_design_refused_for_room_names_a_bed_on_which_it_prints(tmp_path):
+    """Random 62219: at the generic bed no realization tried leaves its joints room (the
+    export refuses, exit 2); the refusal names the smallest larger bed on which one has room
+    (:mod:`remedy`), and on that bed the export is whole: the independent checker finds only
+    slender bars, which the report names with the pair that limits them."""
+    from independent.generic_designs import random_design
+
+    design = tmp_path / "random-62219.json"
+    design.write_text(json.dumps(random_design(62219)))
+
+    def export(*extra: str) -> subprocess.CompletedProcess:
+        return subprocess.run([sys.executable, "-m", "app.cli.main", "export", str(design),
+                               "--out", str(tmp_path / "out"), "--quiet", *extra],
+                              cwd=ROOT, capture_output=True, text=True, timeout=900)
+
+    refused = export()
+    assert refused.returncode == 2 and not (tmp_path / "out").exists(), refused.stderr[-400:]
+    bed = re.search(r"--bed (\d+),(\d+),(\d+)\), where", refused.stderr)
+    assert bed is not None, refused.stderr[-600:]
+    assert int(bed[1]) > 250  # larger than the generic bed
+    run = export("--bed", ",".join(bed.groups()))
+    assert run.returncode == 0, run.stderr[-400:]
+    found = pc.check_export(tmp_path / "out")
+    assert all(f.startswith("bar: ") for f in found["failures"]), found["failures"]
+    report = json.loads((tmp_path / "out" / "report.json").read_text())
+    assert not found["failures"] or report["sizing"]["limiting_pair"]
 
 
 # --- a good export damaged: each damage is reported --------------------------------------------

@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import fab_fixtures as F
 import numpy as np
 import pytest
@@ -15,6 +17,7 @@ from paraloop_core.fabrication import (
     joints,
     printable,
     profiles,
+    remedy,
     rows,
     sizing,
     stiffness,
@@ -329,3 +332,38 @@ def test_print_in_place_is_refused_at_once():
         printable.choose([cand], printable.Options(joints="print-in-place"))
     assert err.value.reason == "bad-parameters"
     assert str(err.value).count("deg") >= 8  # the limit, the worst lean, each joint's
+
+
+# --- what a refusal for room says would work (remedy) ------------------------------------------
+
+
+def _room_from(factor: float):
+    """A sizer that finds room only on a bed (or at a size) ``factor`` times the generic's."""
+    generic = printable.Options()
+
+    def size(real, opts, ee):
+        grown = (opts.size_mm / 200.0 if opts.size_mm is not None else
+                 opts.printer.bed_mm[0] / generic.printer.bed_mm[0])
+        if grown < factor:
+            raise sizing.NoRoomError("no room", "bad-parameters")
+        return SimpleNamespace(size_mm=0.9 * grown * 250.0)
+
+    return size
+
+
+def test_refusal_names_the_smallest_bed_that_has_room():
+    hint = remedy.larger_print([("loop 1", None, None), ("loop 2", None, None)],
+                               printable.Options(), _room_from(1.4))
+    # 1.25 x the bed has no room, 1.5 x has: 250 x 210 x 210 -> 375 x 315 x 315
+    assert "a bed of at least 375 x 315 x 315 mm (--bed 375,315,315)" in hint
+    assert "where loop 1 has room for its joints at 338 mm" in hint
+    at_size = remedy.larger_print([("loop 1", None, None)], printable.Options(size_mm=200.0),
+                                  _room_from(1.9))
+    assert "--size-mm 400" in at_size
+    assert remedy.larger_print([], printable.Options(), _room_from(1.0)) == ""
+
+
+def test_refusal_says_when_a_larger_print_would_not_help():
+    hint = remedy.larger_print([("loop 1", None, None)], printable.Options(), _room_from(3.5))
+    assert "A larger print would not help" in hint and "3 times as large" in hint
+    assert "--bed" not in hint

@@ -43,6 +43,7 @@ from paraloop_core.fabrication import (
     layout,
     parts,
     profiles,
+    remedy,
     rows,
     sizing,
     stand,
@@ -155,7 +156,7 @@ def choose(candidates: Iterable[Candidate], opts: Options, progress: Progress | 
     """The sized candidates, best first (module docstring), and what was tried. Raises
     :class:`FabricationError` naming every failure when none can be sized, and for joints
     printed in place on a loop whose axes do not allow it (:func:`joints.in_place_refusal`)."""
-    tried, sized, lifted = [], [], []
+    tried, sized, lifted, roomless = [], [], [], []
     for n, cand in enumerate(candidates):
         if n >= MAX_CANDIDATES:
             break
@@ -172,6 +173,8 @@ def choose(candidates: Iterable[Candidate], opts: Options, progress: Progress | 
             if opts.joints == "print-in-place":
                 raise
             tried.append(f"{cand.label}: {exc}")
+            if isinstance(exc, sizing.NoRoomError):
+                roomless.append((cand.label, real, ee))
             continue
         tried.append(f"{cand.label}: {plan.size_mm:.0f} mm, bars "
                      f"{plan.radii.min() * sizing.FLATS:.1f} mm wide or more"
@@ -187,11 +190,9 @@ def choose(candidates: Iterable[Candidate], opts: Options, progress: Progress | 
             break
     if not sized:
         # the hardware is the same at every size, the room between the links grows with it
-        hint = (" What would work: a larger print (a printer with a larger bed, --printer or "
-                "--bed) leaves the joints' hardware more room; or a design whose links pass "
-                "farther apart." if any("do not fit in the room" in t for t in tried) else "")
-        raise FabricationError("no realization of this design can be printed with real "
-                               "joints: " + "; ".join(tried) + "." + hint, "bad-parameters")
+        raise FabricationError(remedy.refusal(tried, roomless, opts,
+                                              lambda r, o, e: _plan(r, o, ee=e)),
+                               "bad-parameters")
     return sorted(sized, key=lambda c: _score(c[3]), reverse=True), tried
 
 

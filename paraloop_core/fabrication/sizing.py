@@ -340,12 +340,17 @@ def _any_size(real, b: Bounds, printer: Printer, material: Material, kind: str, 
                         (1.0, *CAP_SHARES)) is not None for k in _sizes(b, printer))
 
 
+class NoRoomError(FabricationError):
+    """The joints' bosses and hardware do not fit the room a realization's certificate leaves
+    at any size tried (a larger print may have room: :mod:`remedy`)."""
+
+
 def _no_room(b: Bounds, printer: Printer, kind: str, size_mm: float | None
-             ) -> FabricationError:
+             ) -> NoRoomError:
     where = f"at {size_mm:.0f} mm" if size_mm is not None else \
         f"at any size from {bed.bed_scale(b.points, printer) * b.extent:.0f} mm down to " \
         f"{MIN_SIZE_MM:g} mm"
-    return FabricationError(
+    return NoRoomError(
         f"{where} the joints' bosses and hardware ({kind}) and bars do not fit in the room "
         "this realization's certificate leaves between the links", "bad-parameters")
 

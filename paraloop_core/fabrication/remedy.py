@@ -1,0 +1,101 @@
+"""What would work when no realization of a design prints: a larger print, or none.
+
+The joints' hardware (screw, nut, dowel) keeps its size while the room between the links grows
+with the print. A realization refused for room (:class:`sizing.NoRoomError`: at every size the
+bed allows, its bosses and hardware do not fit where the certificate keeps the links apart)
+may have it in a larger print. :func:`larger_print` sizes those realizations again, on beds
+up to :data:`FACTORS` times the printer's (or at that many times the size the maker fixed),
+and names the smallest that gives one of them room; or says that none does, so that a larger
+print would not help. The sizing predicts the parts from the certified rows (joints, bosses,
+bars); the export on that bed builds and verifies them as always.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import replace
+
+from paraloop_core.errors import FabricationError
+from paraloop_core.fabrication.profiles import Options
+from paraloop_core.realization.certified import Realization
+
+#: Multiples of the printer's bed (or of the maker's size) tried, smallest first.
+FACTORS = (1.25, 1.5, 2.0, 3.0)
+#: Refused realizations sized again (the first ones tried: the design's loop, the roomiest).
+MAX_TRIED = 8
+
+#: ``(label, realization, end-effector realization or None)`` of a candidate refused for room.
+Refused = tuple[str, Realization, object | None]
+#: The exporter's sizing of one realization under some options (raises FabricationError).
+Sizer = Callable[[Realization, Options, object | None], object]
+
+
+def refusal(tried: Sequence[str], refused: Sequence[Refused], opts: Options,
+            size: Sizer) -> str:
+    """The message of an export that prints no realization: why (how many of those ``tried``
+    had no room), what would work (:func:`larger_print`), then every try: the why and the
+    remedy first, where a one-line error shows them."""
+    where = f"at {opts.size_mm:.0f} mm" if opts.size_mm is not None else \
+        "at any size the bed allows"
+    n, r = len(tried), len(refused)
+    why = f"{r} of {n} tried leave{'s' * (r == 1)} the joints no room {where}" \
+        if refused else f"none of the {n} realizations tried was found and sized"
+    if refused and r < n:
+        why += f", {n - r} were not found or not sized"
+    return (f"no realization of this design can be printed with real joints ({why})."
+            f"{larger_print(refused, opts, size)} Tried: " + "; ".join(tried) + ".")
+
+
+def larger_print(refused: Sequence[Refused], opts: Options, size: Sizer) -> str:
+    """The sentence the refusal ends with: the smallest larger print (a bed, or a size when
+    ``opts.size_mm`` is fixed) on which ``size`` finds room for a realization of
+    ``refused``, or that none up to ``FACTORS[-1]`` times has it. ``refused`` empty: ""."""
+    if not refused:
+        return ""
+    refused = list(refused)[:MAX_TRIED]
+    # the largest print first: the realizations without room even there are left out
+    roomy = [(c, _size_mm(c, _scaled(opts, FACTORS[-1]), size)) for c in refused]
+    roomy = [(c, s) for c, s in roomy if s is not None]
+    if not roomy:
+        what = "a size" if opts.size_mm is not None else "a bed"
+        return (f" A larger print would not help: at {what} {FACTORS[-1]:g} times as large no "
+                "realization tried has room for its joints either. What would work: a design "
+                "whose links pass farther apart (other poses, family or mu).")
+    for f in FACTORS[:-1]:
+        for c, _ in roomy:
+            size_mm = _size_mm(c, _scaled(opts, f), size)
+            if size_mm is not None:
+                return _words(c[0], _scaled(opts, f), size_mm)
+    (label, _, _), size_mm = roomy[0]
+    return _words(label, _scaled(opts, FACTORS[-1]), size_mm)
+
+
+def _words(label: str, scaled: Options, size_mm: float) -> str:
+    if scaled.size_mm is not None:
+        return (f" What would work: --size-mm {scaled.size_mm:.0f} (a larger print leaves the "
+                f"joints' hardware more room: {label} has it there); or a design whose links "
+                "pass farther apart.")
+    x, y, z = scaled.printer.bed_mm
+    return (f" What would work: a bed of at least {x:.0f} x {y:.0f} x {z:.0f} mm (--bed "
+            f"{x:.0f},{y:.0f},{z:.0f}), where {label} has room for its joints at "
+            f"{size_mm:.0f} mm; or a design whose links pass farther apart.")
+
+
+def _scaled(opts: Options, f: float) -> Options:
+    """``opts`` with the bed (or the fixed size) ``f`` times as large, whole millimetres up."""
+    if opts.size_mm is not None:
+        return replace(opts, size_mm=float(math.ceil(opts.size_mm * f)))
+    bed = tuple(float(math.ceil(v * f)) for v in opts.printer.bed_mm)
+    return replace(opts, printer=replace(opts.printer, name=f"{opts.printer.name} x{f:g}",
+                                         bed_mm=bed))
+
+
+def _size_mm(refused: Refused, opts: Options, size: Sizer) -> float | None:
+    """The size of ``size``'s plan for the refused realization under ``opts``, None when it
+    has no room there either."""
+    _, real, ee = refused
+    try:
+        return float(size(real, opts, ee).size_mm)  # type: ignore[attr-defined]
+    except FabricationError:
+        return None
