@@ -423,7 +423,8 @@ def test_fuzz_slow_tier():
     settings(SLOW, max_examples=1000, deadline=5000)(
         given(mutated_designs(names=tuple(QUICK)))(check_cli))()
     SLOW(given(sized_fields())(check_sized))()
-    settings(SLOW, max_examples=1000, deadline=None)(given(magnitudes())(check_solved))()
+    settings(SLOW, max_examples=1000, deadline=None)(
+        given(magnitudes())(lambda data: check_solved(data)))()
     settings(SLOW, max_examples=60, deadline=None)(
         given(magnitudes(names=("tv8.json", "sun-disc.json")))(
             lambda data: check_solved(data, realize=True)))()
