@@ -22,7 +22,7 @@ from conftest import random_rotation_factors
 
 from paraloop_core.algebra import dq, factor, poly
 from paraloop_core.fabrication import assembly as assembly_mod
-from paraloop_core.fabrication import check, printable, profiles, sizing
+from paraloop_core.fabrication import check, choice, printable, profiles, sizing
 from paraloop_core.linkage import loops
 from paraloop_core.realization import polyline, realize
 
@@ -83,7 +83,7 @@ def assembly(kind: str = "m3") -> assembly_mod.Assembly:
 @functools.lru_cache(maxsize=1)
 def printed() -> printable.Printed:
     """The printable stage on :func:`real` at :data:`SIZE_MM`: grounded, verified."""
-    cand = printable.Candidate("test loop", 4, lambda: (real(), None))
+    cand = choice.Candidate("test loop", 4, lambda: (real(), None))
     return printable.make([cand], printable.Options(size_mm=SIZE_MM, samples=SAMPLES))
 
 

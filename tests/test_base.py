@@ -177,9 +177,9 @@ def test_a_loop_without_a_base_says_how_it_is_held():
     """Exported without a base (or with no rod that clears the moving links): no ``base``
     entry, and the report's ``mount`` says how to hold it; with a standing base, ``mount`` is
     None."""
-    from paraloop_core.fabrication import printable
+    from paraloop_core.fabrication import choice, printable
 
-    cand = printable.Candidate("test loop", 4, lambda: (F.real(), None))
+    cand = choice.Candidate("test loop", 4, lambda: (F.real(), None))
     bare = printable.make([cand], printable.Options(size_mm=F.SIZE_MM, samples=F.SAMPLES,
                                                     ground=False))
     assert "base" not in bare.report and bare.base is None

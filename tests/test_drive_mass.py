@@ -9,7 +9,7 @@ import pytest
 
 from paraloop_core.algebra import dq
 from paraloop_core.design import DriveSettings
-from paraloop_core.fabrication import base, drive_mass, profiles
+from paraloop_core.fabrication import base, choice, drive_mass, profiles
 from paraloop_core.linkage import drive, loops
 
 
@@ -111,7 +111,7 @@ def test_a_loop_one_motor_cannot_hold_is_named(monkeypatch):
     from paraloop_core.fabrication import printable
 
     monkeypatch.setattr(drive_mass.drive, "HOLD_RATIO", 1.0)
-    cand = printable.Candidate("test loop", 4, lambda: (F.real(), None))
+    cand = choice.Candidate("test loop", 4, lambda: (F.real(), None))
     pr = printable.make([cand], printable.Options(size_mm=F.SIZE_MM, samples=16,
                                                   ground=False))
     ratio = pr.report["drive"]["worst_speed_ratio"]

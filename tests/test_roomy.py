@@ -17,7 +17,7 @@ from independent.generic_designs import random_design
 
 import paraloop_core as pl
 from paraloop_core import printed
-from paraloop_core.fabrication import printable
+from paraloop_core.fabrication import choice, printable
 from paraloop_core.realization import realize, roomy
 
 
@@ -49,7 +49,7 @@ def test_roomy_certificates_survive_the_referee_and_make_it_printable(close_desi
     the design's own realization does not."""
     sol = close_design
     with pytest.raises(pl.FabricationError, match="do not fit in the room"):
-        printable._plan(sol.realization, printable.Options())
+        choice._plan(sol.realization, printable.Options())
     sized = None
     for loop in sorted(range(len(sol.loops)), key=lambda i: -roomy.draw(*_factors(sol, i)).promise):
         try:
@@ -59,7 +59,7 @@ def test_roomy_certificates_survive_the_referee_and_make_it_printable(close_desi
         rep = check_result(pl.result_to_dict(roomy_sol))
         assert rep["status"] == "checked" and rep["disagreements"] == [], loop
         try:
-            sized = printable._plan(roomy_sol.realization, printable.Options())
+            sized = choice._plan(roomy_sol.realization, printable.Options())
             break
         except pl.FabricationError:
             continue
@@ -102,10 +102,9 @@ def test_roomy_candidates_follow_a_first_search_that_found_none(first_found, mon
         return SimpleNamespace(realization=None, end_effector=None)
 
     monkeypatch.setattr(printed, "realize_variant", variant)
-    monkeypatch.setattr(printed, "_roomy_candidates", lambda sol, made: iter(
-        [printable.Candidate("roomy", 0, lambda: (None, None))]))
-    made: list = []
-    cands = printed.candidates(sol, printable.Options().printer, made)
+    monkeypatch.setattr(printed, "_roomy_candidates", lambda sol: iter(
+        [choice.Candidate("roomy", 0, lambda: (None, None))]))
+    cands = printed.candidates(sol, printable.Options().printer)
     first = next(cands)
     if first_found:
         first.make()

@@ -13,6 +13,7 @@ from independent.segdist import segment_distance
 from paraloop_core.errors import FabricationError, RealizationError
 from paraloop_core.fabrication import (
     bed,
+    choice,
     flat,
     joints,
     printable,
@@ -253,41 +254,41 @@ def test_choice_names_every_failure_and_keeps_the_sized():
     def refused():
         raise RealizationError("no realization in the budget", "not-found")
 
-    good = printable.Candidate("roomy", 4, lambda: (F.real(), None))
-    bad = printable.Candidate("thin", 4, refused)
+    good = choice.Candidate("roomy", 4, lambda: (F.real(), None))
+    bad = choice.Candidate("thin", 4, refused)
     opts = printable.Options(size_mm=F.SIZE_MM)
-    ranked, tried = printable.choose([bad, good], opts)
+    ranked, tried = choice.choose([bad, good], opts)
     assert [c.label for c, *_ in ranked] == ["roomy"] and tried[0].startswith("thin: no reali")
     assert ranked[0][3].size_mm == pytest.approx(F.SIZE_MM)
     with pytest.raises(FabricationError, match="thin: no realization in the budget"):
-        printable.choose([bad], opts)
+        choice.choose([bad], opts)
     small = printable.Options(size_mm=60.0)
     with pytest.raises(FabricationError, match="roomy: at 60 mm"):
-        printable.choose([good], small)
+        choice.choose([good], small)
 
 
 @pytest.mark.parametrize("lifted", [False, True])
 def test_more_candidates_are_sized_while_each_would_print_over_supports(lifted, monkeypatch):
-    """Sizing stops after :data:`printable.ENOUGH_SIZED` candidates, or
-    :data:`printable.FLAT_SEARCH` more while each one's own layouts leave a link no flat."""
+    """Sizing stops after :data:`choice.ENOUGH_SIZED` candidates, or
+    :data:`choice.FLAT_SEARCH` more while each one's own layouts leave a link no flat."""
     real = F.real()
-    monkeypatch.setattr(printable, "_lifted_by_plan", lambda *a: lifted)
-    cands = [printable.Candidate(f"c{k}", 4, lambda: (real, None)) for k in range(10)]
+    monkeypatch.setattr(choice, "_lifted_by_plan", lambda *a: lifted)
+    cands = [choice.Candidate(f"c{k}", 4, lambda: (real, None)) for k in range(10)]
     # a size that meets no aims: the count alone stops the sizing
-    ranked, tried = printable.choose(cands, printable.Options(size_mm=0.6 * F.SIZE_MM))
+    ranked, tried = choice.choose(cands, printable.Options(size_mm=0.6 * F.SIZE_MM))
     assert not any(plan.aims_met for *_, plan in ranked)
-    extra = printable.FLAT_SEARCH if lifted else 0
-    assert len(ranked) == len(tried) == printable.ENOUGH_SIZED + extra
+    extra = choice.FLAT_SEARCH if lifted else 0
+    assert len(ranked) == len(tried) == choice.ENOUGH_SIZED + extra
 
 
 def test_the_sizing_predicts_the_links_a_build_lifts():
-    """:func:`printable._lifted_by_plan` agrees with the built parts' print flats (before the
+    """:func:`choice._lifted_by_plan` agrees with the built parts' print flats (before the
     grounding rod re-lays a joint)."""
     real, opts = F.real(), printable.Options(size_mm=F.SIZE_MM)
-    plan = printable._plan(real, opts)
+    plan = choice._plan(real, opts)
     asm, plan, _ = printable._fit_and_build(real, None, plan, opts)
     off_flat = [i for i in range(6) if not flat.lies_flat(asm.slack[i])]
-    assert printable._lifted_by_plan(real, plan, opts) == bool(off_flat)
+    assert choice._lifted_by_plan(real, plan, opts) == bool(off_flat)
     assert printable._keeled(asm) == off_flat and not printable._lifted(asm)
 
 
@@ -309,7 +310,7 @@ def test_a_keel_that_fails_the_verification_is_narrowed_then_taken_off(monkeypat
 
     monkeypatch.setattr(printable.check, "verify", verify)
     handed = []
-    cand = printable.Candidate("test loop", 4, lambda: (F.real(), None))
+    cand = choice.Candidate("test loop", 4, lambda: (F.real(), None))
     out = printable.make([cand], printable.Options(size_mm=F.SIZE_MM, samples=F.SAMPLES),
                          on_parts=handed.append)
     assert out.report["verification"]["pairs"][2]["links"] == [0, 3]
@@ -327,9 +328,9 @@ def test_a_keel_that_fails_the_verification_is_narrowed_then_taken_off(monkeypat
 
 
 def test_print_in_place_is_refused_at_once():
-    cand = printable.Candidate("roomy", 4, lambda: (F.real(), None))
+    cand = choice.Candidate("roomy", 4, lambda: (F.real(), None))
     with pytest.raises(FabricationError, match="lean up to") as err:
-        printable.choose([cand], printable.Options(joints="print-in-place"))
+        choice.choose([cand], printable.Options(joints="print-in-place"))
     assert err.value.reason == "bad-parameters"
     assert str(err.value).count("deg") >= 8  # the limit, the worst lean, each joint's
 

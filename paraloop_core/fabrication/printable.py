@@ -3,10 +3,11 @@
 :func:`make` takes candidate realizations (lazily: each is a new, equally certified search,
 made by the caller, which knows the design) and
 
-1. sizes each (:func:`sizing.plan`: the largest size whose parts fit the bed, the thickest
-   bars the certificate allows, joints with real hardware) and keeps the best: the width and
-   length/width aims met, then the largest size, then the thickest thinnest bar; the first
-   candidate is the design's own loop, and it is kept when it is as good as any tried;
+1. sizes each (:mod:`choice`, :func:`sizing.plan`: the largest size whose parts fit the
+   bed, the thickest bars the certificate allows, joints with real hardware) and keeps the
+   best: the width and length/width aims met, then the largest size, then the thickest
+   thinnest bar; the first candidate is the design's own loop, and it is kept when it is as
+   good as any tried;
 2. builds the links (:mod:`assembly`), each laid on a flat face for printing (:mod:`layout`),
    shrinking the size if a built part does not fit the bed;
 3. grounds it (:mod:`base`): a rod and a plate on which it stands over the whole cycle, the
@@ -30,20 +31,19 @@ from typing import NamedTuple
 import numpy as np
 
 from paraloop_core.design import DriveSettings
-from paraloop_core.errors import FabricationError, RealizationError
+from paraloop_core.errors import FabricationError
 from paraloop_core.fabrication import (
     assembly,
     base,
     bed,
     check,
+    choice,
     drive_mass,
     flat,
     joints,
     keel,
     layout,
     parts,
-    profiles,
-    remedy,
     rows,
     sizing,
     stand,
@@ -52,32 +52,12 @@ from paraloop_core.fabrication import (
 )
 from paraloop_core.fabrication.assembly import Assembly
 from paraloop_core.fabrication.profiles import Options
-from paraloop_core.linkage import loops
 from paraloop_core.realization.certified import Realization
 
 Progress = Callable[[float, str], None]
-#: Most candidate realizations sized before the best so far is taken.
-MAX_CANDIDATES = 16
-#: Sized candidates after which the choice is made even when none meets the aims (each more
-#: costs a realization and a sizing; the best of three is rarely beaten later).
-ENOUGH_SIZED = 3
-#: More candidates sized past :data:`ENOUGH_SIZED` while every one sized would print a link
-#: over supports by its own layouts (:func:`_lifted_by_plan`).
-FLAT_SEARCH = 2
 #: Rebuilds with the keels that failed the verification a level lower (:func:`keel.in_the_way`:
 #: wide, narrow, none).
 KEEL_ROUNDS = 3
-
-
-@dataclass(frozen=True)
-class Candidate:
-    """A realization to try: what it is (``label``), the design ``loop`` index, and ``make()``
-    returning ``(Realization, end-effector realization or None)`` or raising
-    :class:`RealizationError`."""
-
-    label: str
-    loop: int
-    make: Callable[[], tuple[Realization, object | None]]
 
 
 @dataclass(frozen=True)
@@ -102,106 +82,12 @@ def stage(progress: Progress | None, lo: float, hi: float) -> Progress | None:
     return lambda f, msg: progress(lo + (hi - lo) * f, msg)
 
 
-def _cut(layouts: Iterable[joints.Joint]) -> bool:
-    """Whether a joint of ``layouts`` cuts a bar across its centre line
-    (:func:`joints.cut_sides`)."""
-    return any(any(j.cut) for j in layouts)
-
-
 def _cut_words(layouts: Iterable[joints.Joint]) -> str:
     """Which bars a joint cuts across their centre line (:func:`joints.cut_sides`), in words."""
     return "; ".join(f"the bar of link {(j.index + k) % 6} is cut across its core at joint "
                      f"{j.index} (it runs close along the axis into the room of the "
                      "neighbour's boss or of the joint's hardware)"
                      for j in layouts for k in (0, 1) if j.cut[k])
-
-
-def _score(plan: sizing.Plan) -> tuple:
-    # a bar cut across its core or thinner than the floors is what a maker sees first; then
-    # the level, the joints, the size
-    kinds = profiles.AUTO_JOINTS
-    rank = -kinds.index(plan.kind) if plan.kind in kinds else 0
-    flaws = int(_cut(plan.layouts)) + int(plan.level >= 3)
-    return (-flaws, -plan.level, rank, round(plan.size_mm, 0), float(plan.radii.min()))
-
-
-def _plan(real: Realization, opts: Options, size_mm: float | None = None,
-          ee: object | None = None) -> sizing.Plan:
-    """:func:`sizing.plan` with the options' joints (``auto``: :data:`profiles.AUTO_JOINTS`
-    in turn, the first that reaches the best level); ``size_mm`` overrides the options'."""
-    kinds = profiles.AUTO_JOINTS if opts.joints == "auto" else (opts.joints,)
-    extra = None if ee is None else {3: ee.effector.vertices}
-    best, error = None, None
-    for kind in kinds:
-        try:
-            p = sizing.plan(real, opts.printer, opts.material, kind, opts.rod,
-                            size_mm=size_mm or opts.size_mm,
-                            fit=lambda q: bed.predicted_fit(q, real.points, opts.printer,
-                                                             extra), ee=ee)
-        except FabricationError as exc:
-            error = error or exc
-            continue
-        if best is None or p.level < best.level:
-            best = p
-        if best.level <= 1:
-            break
-    if best is None:
-        raise error
-    return best
-
-
-def choose(candidates: Iterable[Candidate], opts: Options, progress: Progress | None = None
-           ) -> tuple[list[tuple[Candidate, Realization, object | None, sizing.Plan]],
-                      list[str]]:
-    """The sized candidates, best first (module docstring), and what was tried. Raises
-    :class:`FabricationError` naming every failure when none can be sized, and for joints
-    printed in place on a loop whose axes do not allow it (:func:`joints.in_place_refusal`)."""
-    tried, sized, lifted, roomless = [], [], [], []
-    for n, cand in enumerate(candidates):
-        if n >= MAX_CANDIDATES:
-            break
-        if progress is not None:
-            progress(n / MAX_CANDIDATES, f"sizing {cand.label}")
-        try:
-            real, ee = cand.make()
-            if opts.joints == "print-in-place":
-                why = joints.in_place_refusal(loops.factor_axes(real.joint_factors))
-                raise FabricationError(why or "print-in-place is not built by paraloop",
-                                       "bad-parameters")
-            plan = _plan(real, opts, ee=ee)
-        except (RealizationError, FabricationError) as exc:
-            if opts.joints == "print-in-place":
-                raise
-            tried.append(f"{cand.label}: {exc}")
-            if isinstance(exc, sizing.NoRoomError):
-                roomless.append((cand.label, real, ee))
-            continue
-        tried.append(f"{cand.label}: {plan.size_mm:.0f} mm, bars "
-                     f"{plan.radii.min() * sizing.FLATS:.1f} mm wide or more"
-                     + ("" if plan.aims_met else f" ({sizing.LEVELS[plan.level]})"))
-        sized.append((cand, real, ee, plan))
-        lifted.append(_lifted_by_plan(real, plan, opts))
-        enough = sum(c[3].aims_met and not _cut(c[3].layouts) for c in sized) >= \
-            (1 if opts.size_mm is not None else 2) \
-            or len(sized) >= ENOUGH_SIZED
-        # two that meet the aims (the design's loop first) are enough to choose from, unless
-        # each would print a link over supports: then a few more
-        if enough and (not all(lifted) or len(sized) >= ENOUGH_SIZED + FLAT_SEARCH):
-            break
-    if not sized:
-        # the hardware is the same at every size, the room between the links grows with it
-        raise FabricationError(remedy.refusal(tried, roomless, opts,
-                                              lambda r, o, e: _plan(r, o, ee=e)),
-                               "bad-parameters")
-    return sorted(sized, key=lambda c: _score(c[3]), reverse=True), tried
-
-
-def _lifted_by_plan(real: Realization, plan: sizing.Plan, opts: Options) -> bool:
-    """Whether some link of ``plan`` has no print flat (:func:`flat.lies_flat`) with the
-    sizing's own joint layouts (the grounding rod's bore may still take more)."""
-    need = sizing.flat_radii(rows.bounds_of(real), plan.scale, plan.layouts,
-                             opts.printer.wall_mm)
-    return not all(flat.lies_flat(s) for s in (plan.radii - need) * sizing.APOTHEM)
 
 
 #: How far the end-effector link's bars reach past P's corners L and R towards its centroid
@@ -245,7 +131,7 @@ def _fit_and_build(real: Realization, ee: object | None, plan: sizing.Plan, opts
     return asm, plan, None if el is None else el.method
 
 
-def make(candidates: Iterable[Candidate], opts: Options | None = None,
+def make(candidates: Iterable[choice.Candidate], opts: Options | None = None,
          drive: DriveSettings | None = None, progress: Progress | None = None,
          on_parts: Callable[[Assembly], None] | None = None) -> Printed:
     """The printable loop (module docstring); ``on_parts(assembly)`` is called with the parts
@@ -253,7 +139,7 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
     that verification takes a keel off (those parts are not the ones kept), and again with
     the final parts."""
     opts = opts or Options()
-    ranked, tried = choose(candidates, opts, stage(progress, 0.0, 0.25))
+    ranked, tried = choice.choose(candidates, opts, stage(progress, 0.0, 0.25))
     if progress is not None:
         progress(0.25, "building the parts")
     # the best candidate that builds and stands on its base, no bar cut and its links
@@ -295,7 +181,7 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
         if lifted:
             tried.append(f"{cand.label}: link{'s' * (len(lifted) > 1)} "
                          f"{', '.join(map(str, lifted))} would print over supports")
-        if _cut(asm.joints):
+        if choice.cut(asm.joints):
             tried.append(f"{cand.label}: {_cut_words(asm.joints)}")
     if not built:
         raise error
@@ -311,7 +197,7 @@ def make(candidates: Iterable[Candidate], opts: Options | None = None,
                         f"{', '.join(map(str, lifted))} cannot lie on the bar's face without "
                         "breaking into a bore: printed standing on the bosses' cut faces, the "
                         "bar over supports")
-    if _cut(asm.joints):
+    if choice.cut(asm.joints):
         warnings.append(f"{_cut_words(asm.joints)}: a crescent is left of it there (no "
                         "realization tried avoids this)")
     report = {
@@ -363,14 +249,14 @@ def _accepted(asm: Assembly, b: base.Base | None, opts: Options) -> bool:
     """Whether a built candidate is taken at once: standing on its base (or no grounding
     asked for), no link over supports, no bar cut across its core."""
     return bool((b is not None and b.stands or not opts.ground) and not _lifted(asm)
-                and not _cut(asm.joints))
+                and not choice.cut(asm.joints))
 
 
 class _Built(NamedTuple):
     """A candidate of :func:`make` built and grounded (``base`` None: no grounding), and its
     verification once made (:func:`_settled`)."""
 
-    cand: Candidate
+    cand: choice.Candidate
     real: Realization
     ee: object | None
     plan: sizing.Plan
@@ -432,7 +318,7 @@ def _built_score(x: _Built, ground: bool) -> tuple:
     (:func:`joints.cut_sides`); then standing on its plate (else screwed down: the report's
     ``mount``). A grounding rod without its cap is none: it ends in a blind bore."""
     plan, asm, b = x.plan, x.asm, x.base
-    defects = int(bool(_lifted(asm))) + int(plan.level >= 3) + int(_cut(asm.joints))
+    defects = int(bool(_lifted(asm))) + int(plan.level >= 3) + int(choice.cut(asm.joints))
     return (b is not None or not ground, -defects, b is not None and b.stands)
 
 
