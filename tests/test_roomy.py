@@ -12,12 +12,16 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from independent.dense_check import check_result
 from independent.generic_designs import random_design
+from independent.segdist import segment_distance
 
 import paraloop_core as pl
 from paraloop_core import printed
 from paraloop_core.fabrication import choice, printable
+from paraloop_core.printed import ROOMY_PIN
 from paraloop_core.realization import realize, roomy
 
 
@@ -32,15 +36,60 @@ def test_screen_orders_by_exact_clearance_below_the_samples(close_design):
     jf, unit = close_design.search_factors(1)
     draws = roomy.draw(jf, {2: 0.0}, unit)
     lp = draws.lp
-    index, score = roomy.screen(draws)
+    index, score, thin = roomy.screen(draws, ROOMY_PIN)
     tau, polys = draws.tau[index], draws.polys[index]
     assert 0 < len(tau) <= roomy.EXACT and np.all(np.diff(score) <= 0) and np.all(score > 0)
+    assert np.all(score <= thin)  # the thin clearance, or less where the joints' bars pass
     assert np.all(tau[:, 2] == 0)  # the held vertex is not shifted
     exact = roomy.exact_clearance(lp, polys)
     sampled = roomy.sampled_clearance(lp, polys)
     assert np.all(exact <= sampled * (1 + 1e-9) + 1e-12)  # samples bound the minimum above
     extent = np.ptp(polys, axis=1).max(axis=1)
-    assert np.allclose(exact / extent, score, rtol=1e-9, atol=1e-12)
+    assert np.allclose(exact / extent, thin, rtol=1e-9, atol=1e-12)
+    joints = roomy.joint_clearance(lp.u, polys, ROOMY_PIN * extent)
+    assert np.allclose(np.minimum(exact, joints) / extent, score, rtol=1e-9, atol=1e-12)
+
+
+def _joint_clearance_dense(u, v, pin, turns=720):
+    """The two bars at each joint of one thin polyline ``v`` ``(6, 3)`` split by ``pin`` (the
+    bar leaning further along the axis at its upper end), the second turned about the axis
+    at ``turns`` angles: their least distance (independent segment distances)."""
+    best = np.inf
+    for i in range(6):
+        bar_in, bar_out = v[i - 1] - v[i], v[(i + 1) % 6] - v[i]
+        lean_in = bar_in @ u[i] / np.linalg.norm(bar_in)
+        lean_out = bar_out @ u[i] / np.linalg.norm(bar_out)
+        half = pin / 2 if lean_out >= lean_in else -pin / 2
+        a0, b0 = v[i] - half * u[i], v[i] + half * u[i]
+        for t in np.linspace(0, 2 * np.pi, turns, endpoint=False):
+            k = np.array([[0, -u[i, 2], u[i, 1]], [u[i, 2], 0, -u[i, 0]],
+                          [-u[i, 1], u[i, 0], 0]])
+            rot = np.eye(3) + np.sin(t) * k + (1 - np.cos(t)) * k @ k
+            best = min(best, segment_distance(a0, a0 + bar_in, b0, b0 + rot @ bar_out))
+    return best
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(0, 2**32 - 1))
+def test_joint_clearance_samples_the_turn_of_each_joint(seed):
+    rng = np.random.default_rng(seed)
+    v = rng.normal(size=(1, 6, 3))
+    u = rng.normal(size=(6, 3))
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    pin = rng.uniform(0.05, 0.5)
+    got = roomy.joint_clearance(u, v, np.array([pin]))[0]
+    dense = _joint_clearance_dense(u, v[0], pin)
+    # sampled angles: an upper bound of the dense minimum, within the far end's move over
+    # half a sampling step (segment distances are 1-Lipschitz in the ends)
+    step = np.pi / roomy.TURN_SAMPLES
+    reach = np.linalg.norm(np.roll(v[0], -1, axis=0) - v[0], axis=1).max()
+    assert dense - 1e-12 <= got <= dense + reach * step + 1e-12
+
+
+def test_bars_square_to_their_axes_keep_the_pin_apart():
+    ring = np.array([[np.cos(a), np.sin(a), 0.0] for a in np.arange(6) * np.pi / 3])
+    u = np.tile([0.0, 0.0, 1.0], (6, 1))  # every axis square to the plane of the bars
+    assert roomy.joint_clearance(u, ring[None], np.array([0.2]))[0] == pytest.approx(0.2)
 
 
 def test_roomy_certificates_survive_the_referee_and_make_it_printable(close_design):

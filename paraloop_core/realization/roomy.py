@@ -9,7 +9,10 @@ with ten times the room a little further out along the axes.
 :func:`screen` draws shift vectors at random (seeded: the same loop always gets the same
 draws) at :data:`SCALES` of the initial polyline's length l and scores each thin polyline by
 its *sampled* clearance over the cycle per extent. The sampled minimum is an upper bound of
-the true one, so the score only orders the candidates; nothing is concluded from it.
+the true one, so the score only orders the candidates; nothing is concluded from it. The
+best are ranked by their exact clearance, or less where the two bars meeting at a joint,
+split by the pin, come closer as it turns (:func:`joint_clearance`: on random designs those
+bars were the pair that kept the printed bars thin).
 :func:`realize_roomy` then realizes the best ones exactly as the paper's search does its own:
 the exact thin check (step 3), step 4 over the offset sequences with exact minima, and the
 sound bounds of :mod:`verify` (:meth:`realize.Search.run_hint`): the certificate is the same.
@@ -47,6 +50,8 @@ RHO_SHARE = 0.3
 #: Offset sequences the sound check may refute per polyline before the next is tried (near
 #: a singular pose the exact minima can pass sequence after sequence the bounds cannot prove).
 REFUTATIONS = 4
+#: Angles of a joint's turn at which :func:`joint_clearance` measures its two bars.
+TURN_SAMPLES = 36
 #: Rows of the nine thin pairs (bar i, bar j) among the 42 offset pairs.
 _THIN_ROWS = np.array([int(np.flatnonzero((OFFSET_PAIRS[:, 0] == 2 * i) &
                                           (OFFSET_PAIRS[:, 1] == 2 * j))[0])
@@ -86,6 +91,33 @@ def exact_clearance(lp: LoopMotions, polys: np.ndarray) -> np.ndarray:
     return out
 
 
+def joint_clearance(u: np.ndarray, polys: np.ndarray, pin: np.ndarray) -> np.ndarray:
+    """Estimated least distance ``(C,)`` between the two bars that meet at each joint of thin
+    polylines ``(C, 6, 3)`` (axis directions ``u`` ``(6, 3)``) once their vertices are split
+    into pins of length ``pin`` ``(C,)``: the bar leaning further along the axis at the upper
+    end (as step 4's first offsets put it), the other bar turned a whole turn about the axis
+    (a joint of the cycle turns once), at :data:`TURN_SAMPLES` angles. It only orders
+    candidates (the offsets step 4 takes may differ); nothing is concluded from it."""
+    bar_in = np.roll(polys, 1, axis=1) - polys  # (C, 6, 3): link i's bar from V_i
+    bar_out = np.roll(polys, -1, axis=1) - polys  # link i+1's bar
+    up = _cosine(bar_out, u) >= _cosine(bar_in, u)
+    half = np.where(up, 0.5, -0.5) * pin[:, None]  # (C, 6): bar_out's end of the pin
+    a0 = polys - half[..., None] * u
+    b0 = polys + half[..., None] * u
+    theta = np.linspace(0.0, 2.0 * np.pi, TURN_SAMPLES, endpoint=False)
+    c, s = np.cos(theta)[:, None], np.sin(theta)[:, None]
+    along = np.sum(bar_out * u, -1, keepdims=True) * u  # (C, 6, 3)
+    across, side = bar_out - along, np.cross(u, bar_out)
+    turned = along[..., None, :] + c * across[..., None, :] + s * side[..., None, :]
+    dist = segment_distance(a0[..., None, :], (a0 + bar_in)[..., None, :], b0[..., None, :],
+                            b0[..., None, :] + turned)  # (C, 6, K)
+    return dist.min(axis=(1, 2))
+
+
+def _cosine(bar: np.ndarray, u: np.ndarray) -> np.ndarray:
+    return np.sum(bar * u, -1) / np.maximum(np.linalg.norm(bar, axis=-1), 1e-300)
+
+
 @dataclass(frozen=True, eq=False)
 class Draws:
     """One loop's drawn thin polylines (:func:`draw`): its ``search`` and motions ``lp``,
@@ -123,16 +155,20 @@ def draw(joint_factors: np.ndarray, fixed: dict[int, float] | None, in_unit: flo
     return Draws(search, lp, tau, polys, extent, sampled_clearance(lp, polys) / extent)
 
 
-def screen(d: Draws) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def screen(d: Draws, pin: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Up to :data:`EXACT` of the drawn thin polylines ``d``, collision-free, best first:
-    their indices ``(C,)`` into ``d``, scores ``(C,)`` (exact clearance per extent). The
-    draws are ranked by their sampled clearance (cheap), the :data:`CHECKED` best get the
-    exact thin check, the first :data:`EXACT` free ones their exact clearance."""
+    their indices ``(C,)`` into ``d``, scores ``(C,)`` (per extent: the exact clearance, or
+    the joints' bars' with pins of ``pin`` of the extent where less) and exact clearances
+    per extent ``(C,)``. The draws are ranked by their sampled clearance (cheap), the
+    :data:`CHECKED` best get the exact thin check, the first :data:`EXACT` free ones their
+    scores."""
     keep = np.argsort(-d.sampled, kind="stable")[:CHECKED]
     keep = keep[~colliding_polylines(d.lp.thin, d.polys[keep])][:EXACT]
-    score = exact_clearance(d.lp, d.polys[keep]) / d.extent[keep]
+    thin = exact_clearance(d.lp, d.polys[keep]) / d.extent[keep]
+    score = np.minimum(thin, joint_clearance(d.lp.u, d.polys[keep], pin * d.extent[keep])
+                       / d.extent[keep])
     order = np.argsort(-score, kind="stable")
-    return keep[order], score[order]
+    return keep[order], score[order], thin[order]
 
 
 def realize_roomy(d: Draws, *, pin: float, tries: int = 4) -> Realization:
@@ -141,8 +177,8 @@ def realize_roomy(d: Draws, *, pin: float, tries: int = 4) -> Realization:
     ``d = pin x`` the polyline's extent; raises :class:`RealizationError` (``cap-reached``)
     when none of them is certified."""
     search = d.search
-    index, score = screen(d)
-    for k, sc in zip(index[:tries], score[:tries], strict=True):
+    index, score, thin = screen(d, pin)
+    for k, sc in zip(index[:tries], thin[:tries], strict=True):
         if not sc > 0:
             break
         sep = pin * d.extent[k]
