@@ -5,7 +5,8 @@ Each design is solved and exported exactly as ``paraloop export DESIGN --out DIR
 without flags; per design it prints the size, the thinnest bar and its length / width, the
 predicted sag and torque deflection, the least pin engagement (in axle diameters), the base
 (stands, centre-of-mass margin as a share of the plate), the largest support share, the
-verification and the export time; then the shares meeting the issue's criteria.
+verification and the export time (a refused design: what its refusal says would work, a
+larger bed or none); then the shares meeting the issue's criteria.
 ``--check DIR`` also writes each export into ``DIR/<design>/`` and measures its files with
 the independent checker (``tests/independent/printed_check.py``: sections, joint profiles,
 centre of mass over the cycle, print layout, clearance), printing its failures.
@@ -14,6 +15,7 @@ centre of mass over the cycle, print layout, clearance), printing its failures.
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 import time
 from functools import partial
@@ -47,8 +49,12 @@ def run_one(item: tuple[str, object], check: Path | None = None) -> dict:
             return {**row, "outcome": "not realized", "time": time.perf_counter() - t0}
         files, rep, _ = printed.export(sol)
     except ValueError as exc:  # the CLI's refusals (FabricationError etc.)
-        return {**row, "outcome": f"refused: {' '.join(str(exc).split()[:16])}",
-                "time": time.perf_counter() - t0}
+        bed = re.search(r"--bed (\d+,\d+,\d+)", str(exc))
+        remedy = f"--bed {bed[1]}" if bed else \
+            "none (a larger print would not help)" if "would not help" in str(exc) else None
+        return {**row, "outcome": f"refused: {' '.join(str(exc).split()[:16])}"
+                + ("" if remedy is None else f" [what would work: {remedy}]"),
+                "remedy": remedy, "time": time.perf_counter() - t0}
     v, b = rep["verification"], rep.get("base")
     stiff = rep["stiffness"]["links"]
     eng = min(min(j["engagement_diameters"]) for j in rep["joints"])
@@ -131,6 +137,12 @@ def main(argv: list[str] | None = None) -> None:
           f"{sum(bool(r['stands']) for r in done)}; export time median "
           f"{np.median([r['time'] for r in real]):.1f} s, max "
           f"{max(r['time'] for r in real):.1f} s")
+    refused = [r for r in real if r["outcome"].startswith("refused")]
+    if refused:
+        beds = sum(str(r.get("remedy")).startswith("--bed") for r in refused)
+        print(f"refused {len(refused)}: {beds} name a larger bed that prints them, "
+              f"{sum(str(r.get('remedy')).startswith('none') for r in refused)} say a larger "
+              "print would not help")
     if args.check is not None:
         clean = sum(r["failures"] == [] for r in done)
         kinds: dict[str, int] = {}
