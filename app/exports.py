@@ -13,7 +13,6 @@ from __future__ import annotations
 import io
 import zipfile
 from collections.abc import Callable
-from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -102,8 +101,9 @@ def carve_order(fab: FabSettings) -> list[tuple[int, int]]:
 
 
 def printer_of(fab: FabSettings) -> profiles.Printer:
-    """The generic printer profile with the panel's clearance."""
-    return replace(profiles.PRINTERS["generic"], clearance_mm=fab.clearance_mm)
+    """The panel's printer profile with its build volume (when given) and clearance."""
+    bed = profiles.parse_bed(fab.bed) if fab.bed.strip() else None
+    return profiles.printer(fab.printer, bed, fab.clearance_mm)
 
 
 def options_of(fab: FabSettings) -> printable.Options:

@@ -137,14 +137,17 @@ def rescaled(design: Design, factor: float) -> Design:
 
 @dataclasses.dataclass(frozen=True)
 class FabSettings:
-    """Fabrication panel settings (validated by the panel): part size (0: automatic, the size
-    at which the parts meet the generic printer profile) and clearance in mm, the grounding
+    """Fabrication panel settings (validated by the panel): part size (0: automatic, the
+    largest at which the parts fit the printer's bed), the printer profile and its build
+    volume ``"X,Y,Z"`` in mm (empty: the profile's), clearance in mm, the grounding
     column and its link (None: the best), carving radius in mm (0: the realization's median
     design-space radius), voxels along a space (0: automatic,
     :func:`voxelspace.auto_resolution`), the carving
     order (a preset name or ``custom``) and its custom pairs text."""
 
     size_mm: float = 0.0
+    printer: str = "generic"
+    bed: str = ""
     clearance_mm: float = 0.3
     print_in_place: bool = False
     ground: bool = True

@@ -15,11 +15,12 @@ import viser
 from test_studio_server import click, gizmo, settle
 
 from app import studio as studio_mod
-from app.exports import carve_order, parse_order, size_of
+from app.exports import carve_order, options_of, parse_order, size_of
 from app.panels.fabrication import check_setting
 from app.state import FabSettings
 from paraloop_core import design as design_mod
 from paraloop_core.algebra import dq, poly
+from paraloop_core.fabrication import profiles
 from paraloop_core.linkage import loops
 
 DESIGNS = Path(__file__).resolve().parent.parent / "assets" / "designs"
@@ -77,6 +78,25 @@ def test_settings_are_validated(tv8):
     assert tv8.state.fab == FabSettings(size_mm=250.0, clearance_mm=0.0, print_in_place=True)
     inputs["custom_order"].value = "0-1, 1-0"
     assert "twice" in tv8.notifications[-1][1] and tv8.state.fab.custom_order == ""
+
+
+def test_printer_and_bed_reach_the_export_options(tv8):
+    """The printer profile and a build volume (what a refused export names) are the
+    export's, as ``--printer`` and ``--bed`` are the command line's; a malformed bed is
+    refused with what is accepted and the profile's bed kept."""
+    inputs = tv8.fabrication.inputs
+    assert options_of(tv8.state.fab).printer.bed_mm == (250.0, 210.0, 210.0)
+    inputs["printer"].value = "prusa-mini"
+    inputs["bed"].value = "375, 315,315"
+    printer = options_of(tv8.state.fab).printer
+    assert printer.bed_mm == (375.0, 315.0, 315.0) and printer.clearance_mm == 0.3
+    assert printer.wall_mm == profiles.PRINTERS["prusa-mini"].wall_mm
+    for bad in ("375,315", "375,0,315", "big"):
+        inputs["bed"].value = bad
+        title, body, error = tv8.notifications[-1]
+        assert error and "X,Y,Z in mm" in body and tv8.state.fab.bed == "375, 315,315"
+    inputs["bed"].value = ""
+    assert options_of(tv8.state.fab).printer.bed_mm == (180.0, 180.0, 180.0)
 
 
 def test_order_presets_and_parsing():

@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-from dataclasses import replace
 from pathlib import Path
 from typing import TypeVar
 
@@ -118,11 +117,7 @@ def summary_line(report: dict) -> str:
 def _options(args: argparse.Namespace) -> printable.Options:
     """The export options of the command line (printer profile with ``--bed`` and
     ``--clearance`` applied)."""
-    printer = profiles.PRINTERS[args.printer]
-    if args.bed is not None:
-        printer = replace(printer, name=f"{printer.name}, bed {args.bed}", bed_mm=args.bed)
-    if args.clearance is not None:
-        printer = replace(printer, clearance_mm=args.clearance)
+    printer = profiles.printer(args.printer, args.bed, args.clearance)
     return printable.Options(printer=printer, material=profiles.MATERIALS[args.material],
                              joints=args.joints, rod=profiles.RODS[args.rod],
                              size_mm=args.size_mm, ground=not args.no_base,
@@ -130,11 +125,10 @@ def _options(args: argparse.Namespace) -> printable.Options:
 
 
 def _bed(text: str) -> tuple[float, float, float]:
-    side = outputs.float_range(0.0, 1e4, lo_open=True)
-    parts = text.split(",")
-    if len(parts) != 3:
-        raise argparse.ArgumentTypeError(f"--bed needs X,Y,Z in mm, got {text!r}")
-    return tuple(side(v) for v in parts)
+    try:
+        return profiles.parse_bed(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def _print_progress(fraction: float, message: str) -> None:

@@ -24,7 +24,7 @@ from app.state import FabSettings
 from app.wording import gui_text
 from app.worker import FRAME
 from paraloop_core.errors import FabricationError
-from paraloop_core.fabrication import drive_mass
+from paraloop_core.fabrication import drive_mass, profiles
 
 if TYPE_CHECKING:
     from app.host import StudioHost
@@ -57,6 +57,10 @@ def check_setting(key: str, value: Any) -> Any:
             raise ValueError(f"voxels per space must be 0 (automatic) or 16..256, got {value}")
     elif key == "custom_order" and value.strip():
         parse_order(value)
+    elif key == "bed" and value.strip():
+        profiles.parse_bed(value)
+    elif key == "printer" and value not in profiles.PRINTERS:
+        raise ValueError(f"unknown printer {value!r}")
     return value
 
 
@@ -81,9 +85,17 @@ class FabricationPanel:
             self.inputs: dict[str, Any] = {
                 "size_mm": gui.add_number(
                     "Size (mm)", initial_value=fab.size_mm, step=10.0,
-                    hint="longest side of the linkage in mm; 0 = automatic: the size at which "
-                         "every part meets the printer profile (walls 2 mm, pin radius 1 mm, "
-                         "bed 250 x 210 x 210 mm) and fits the bed"),
+                    hint="longest side of the linkage in mm; 0 = automatic: the largest size "
+                         "at which every part fits the printer's bed"),
+                "printer": gui.add_dropdown(
+                    "Printer", tuple(profiles.PRINTERS), initial_value=fab.printer,
+                    hint="printer profile: build volume, walls, fits (generic: 250 x 210 x "
+                         "210 mm, any well-calibrated 0.4 mm nozzle printer)"),
+                "bed": gui.add_text(
+                    "Bed X,Y,Z (mm)", fab.bed,
+                    hint="your printer's build volume, e.g. 375,315,315; empty = the "
+                         "profile's. A design whose joints find no room names the bed that "
+                         "would print it"),
                 "clearance_mm": gui.add_number(
                     "Joint clearance (mm)", initial_value=fab.clearance_mm, step=0.05,
                     hint="gap between a pin and its bore, in mm (your printer's tolerance)"),

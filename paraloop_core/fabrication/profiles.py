@@ -15,7 +15,7 @@ values (``docs/fabrication.md`` cites them); a maker with other hardware edits o
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -60,6 +60,40 @@ PRINTERS = {p.name: p for p in (
     Printer("ender-3", (220.0, 220.0, 250.0), 1.8, 0.35, 0.3, 0.2,
             "Creality Ender-3 (stock: looser fits, holes print small)"),
 )}
+
+
+#: Largest build-volume side accepted (mm): a large-format printer, not a typo of units.
+MAX_BED_MM = 1e4
+
+
+def parse_bed(text: str) -> tuple[float, float, float]:
+    """A build volume ``"X,Y,Z"`` in mm (each > 0 and at most :data:`MAX_BED_MM`); raises
+    FabricationError saying what is accepted."""
+    parts = str(text).split(",")
+    try:
+        bed = tuple(float(v) for v in parts)
+    except ValueError:
+        bed = ()
+    if len(bed) != 3 or not all(np.isfinite(v) and 0 < v <= MAX_BED_MM for v in bed):
+        raise FabricationError(f"the bed needs X,Y,Z in mm, each in (0, {MAX_BED_MM:g}], got "
+                               f"{str(text)[:60]!r}", "bad-parameters")
+    return bed  # type: ignore[return-value]
+
+
+def printer(name: str, bed_mm: tuple[float, float, float] | None = None,
+            clearance_mm: float | None = None) -> Printer:
+    """The profile ``name`` of :data:`PRINTERS` with the maker's build volume and clearance
+    where given (None: the profile's)."""
+    if name not in PRINTERS:
+        raise FabricationError(f"unknown printer {name!r} (one of {', '.join(PRINTERS)})",
+                               "bad-parameters")
+    out = PRINTERS[name]
+    if bed_mm is not None:
+        out = replace(out, name=f"{out.name}, bed {','.join(f'{v:g}' for v in bed_mm)}",
+                      bed_mm=tuple(float(v) for v in bed_mm))
+    if clearance_mm is not None:
+        out = replace(out, clearance_mm=float(clearance_mm))
+    return out
 
 
 @dataclass(frozen=True)
