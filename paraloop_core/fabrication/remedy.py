@@ -73,8 +73,9 @@ def larger_print(refused: Sequence[Refused], opts: Options, size: Sizer) -> str:
 
 def _words(label: str, scaled: Options, size_mm: float) -> str:
     if scaled.size_mm is not None:
-        return (f" What would work: --size-mm {scaled.size_mm:.0f} (a larger print leaves the "
-                f"joints' hardware more room: {label} has it there); or a design whose links "
+        return (f" What would work: --size-mm {scaled.size_mm:.0f}, if the bed takes it (a "
+                f"larger print leaves the joints' hardware more room: {label} has it there), "
+                "or no --size-mm (the largest size the bed takes); or a design whose links "
                 "pass farther apart.")
     x, y, z = scaled.printer.bed_mm
     return (f" What would work: a bed of at least {x:.0f} x {y:.0f} x {z:.0f} mm (--bed "

@@ -177,10 +177,10 @@ def realize_roomy(d: Draws, *, pin: float, tries: int = 4) -> Realization:
     ``d = pin x`` the polyline's extent; raises :class:`RealizationError` (``cap-reached``)
     when none of them is certified."""
     search = d.search
-    index, score, thin = screen(d, pin)
+    index, _, thin = screen(d, pin)
     for k, sc in zip(index[:tries], thin[:tries], strict=True):
-        if not sc > 0:
-            break
+        if not sc > 0:  # no room at all (the thin polyline touches itself)
+            continue
         sep = pin * d.extent[k]
         rho = min(RHO_SHARE * sc * d.extent[k], sep / 2)
         real = search.run_hint(d.tau[k], None, p=FINE_P, rho=rho * search.unit,
