@@ -32,7 +32,6 @@ from paraloop_core.fabrication.step_job import StepJob
 from paraloop_core.linkage import drive_plan
 from paraloop_core.pipeline import Solution
 from paraloop_core.realization import polyline, realize, roomy
-from paraloop_core.realization.certified import Realization
 from paraloop_core.result import json_text, result_to_dict
 
 #: Pin lengths (the offset d) of the candidates as shares of the loop's extent, best first:
@@ -72,26 +71,14 @@ def bed_size(points: np.ndarray, printer: printable.Printer) -> float:
     return bed.bed_scale(pts, printer) * float(np.max(np.ptp(pts, axis=0))) * 0.8
 
 
-def _variant(sol: Solution, loop: int, d_fraction: float, rho_fraction: float) -> Solution:
-    """``sol`` on ``loop`` with offset ``d_fraction`` of the polyline and bars ``rho_fraction``
-    of it (the design's ``p``, fixed vertices and end-effector), not yet realized."""
-    rs = replace(sol.design.realization, d=None, rho=None, d_fraction=d_fraction,
-                 rho_fraction=rho_fraction)
-    return replace(sol, design=replace(sol.design, loop=loop, realization=rs))
-
-
-def _found(attempt: Solution, real: Realization, ee: object | None) -> Solution:
-    """``attempt`` with the realization (and end-effector realization) found for it."""
-    return replace(attempt, realization=real, end_effector=ee, realization_report={
-        "status": "found", "attempts": [], "fallback": None})
-
-
 def realize_variant(sol: Solution, loop: int, d_fraction: float, rho_fraction: float,
                     budget: int | None = None) -> Solution:
-    """``sol`` realized anew on ``loop`` (:func:`_variant`); raises
+    """``sol`` realized anew on ``loop`` with offset ``d_fraction`` of the polyline and bars
+    ``rho_fraction`` of it (the design's ``p``, fixed vertices and end-effector); raises
     :class:`RealizationError` when the search finds none."""
-    attempt = _variant(sol, loop, d_fraction, rho_fraction)
-    rs = attempt.design.realization
+    rs = replace(sol.design.realization, d=None, rho=None, d_fraction=d_fraction,
+                 rho_fraction=rho_fraction)
+    attempt = replace(sol, design=replace(sol.design, loop=loop, realization=rs))
     jf, in_unit = sol.search_factors(loop)
     budget = budget or (WORK_OWN if loop == sol.design.loop else WORK)
     params = dict(p=rs.p, d_fraction=d_fraction, rho_fraction=rho_fraction,
@@ -112,7 +99,8 @@ def realize_variant(sol: Solution, loop: int, d_fraction: float, rho_fraction: f
                                               **params,
                                               ee_clearance=sol.design.end_effector.clearance)
         real = ee.realization
-    return _found(attempt, real, ee)
+    return replace(attempt, realization=real, end_effector=ee, realization_report={
+        "status": "found", "attempts": [], "fallback": None})
 
 
 def roomy_variant(sol: Solution, loop: int, pin: float,
@@ -121,14 +109,12 @@ def roomy_variant(sol: Solution, loop: int, pin: float,
     polyline's extent; the design's fixed vertices, no end-effector; ``draws`` the loop's
     :func:`roomy.draw` when already made); raises :class:`RealizationError` when none of
     its polylines is certified."""
-    return _roomy_found(sol, loop, roomy.realize_roomy(draws or _draws(sol, loop), pin=pin))
-
-
-def _roomy_found(sol: Solution, loop: int, real: Realization) -> Solution:
-    rs = replace(sol.design.realization, p=float(roomy.FINE_P), d=real.separation,
-                 rho=real.radius)
-    return _found(replace(sol, design=replace(sol.design, loop=loop, realization=rs)), real,
-                  None)
+    rs = sol.design.realization
+    real = roomy.realize_roomy(draws or _draws(sol, loop), pin=pin)
+    rs = replace(rs, p=float(roomy.FINE_P), d=real.separation, rho=real.radius)
+    return replace(sol, design=replace(sol.design, loop=loop, realization=rs),
+                   realization=real, end_effector=None, realization_report={
+                       "status": "found", "attempts": [], "fallback": None})
 
 
 def _draws(sol: Solution, loop: int) -> roomy.Draws:
@@ -136,22 +122,26 @@ def _draws(sol: Solution, loop: int) -> roomy.Draws:
     return roomy.draw(jf, dict(sol.design.realization.fixed), in_unit)
 
 
-def _roomy_candidates(sol: Solution) -> Iterator[Candidate]:
+def _roomy_candidates(sol: Solution, made: list[Solution]) -> Iterator[Candidate]:
     """Roomy realizations (:mod:`roomy`) of every loop, the most promising loop first."""
     draws = {i: _draws(sol, i) for i in range(len(sol.loops))}
     for loop in sorted(draws, key=lambda i: -draws[i].promise):
         def run(loop=loop) -> tuple:
-            return roomy_variant(sol, loop, ROOMY_PIN, draws[loop]).realization, None
+            s = roomy_variant(sol, loop, ROOMY_PIN, draws[loop])
+            made.append(s)
+            return s.realization, None
 
         yield Candidate(f"loop {loop}, roomy polyline, offset d = {ROOMY_PIN:g} of its extent",
-                        loop, run, lambda real, ee, loop=loop: _roomy_found(sol, loop, real))
+                        loop, run)
 
 
-def candidates(sol: Solution, printer: printable.Printer) -> Iterator[Candidate]:
+def candidates(sol: Solution, printer: printable.Printer, made: list[Solution]
+               ) -> Iterator[Candidate]:
     """Lazy candidates (module docstring), best first: the design's loop (roomiest first;
     after :data:`FIRST_OWN` of them, or after the first where it found none, without an
-    end-effector, every loop's roomy realization), then every other loop (whether the first
-    found one is known once it is made: before the second is asked for)."""
+    end-effector, every loop's roomy realization), then every other loop;
+    each solution a candidate realizes is appended to ``made`` (the chosen one's result is
+    written)."""
     _, length, ext = expected_size(sol, printer)
     mine = sol.design.loop
     # the design's loop first; the other loops from the farthest from a singular pose
@@ -163,24 +153,22 @@ def candidates(sol: Solution, printer: printable.Printer) -> Iterator[Candidate]
                                                            RHO_FRACTIONS[1]),
              (mine, PIN_FRACTIONS[3], RHO_FRACTIONS[0])]
     later = [(i, PIN_FRACTIONS[0], RHO_FRACTIONS[1]) for i in others]
-    roomy_left, first_found = sol.design.end_effector is None, []
+    start, roomy_left = len(made), sol.design.end_effector is None
     for n, (loop, pin, rf) in enumerate(order + later):
         # the roomy ones after FIRST_OWN, or at once where the first search found none
         # (the second repeats its search with thinner bars: rarely found, costly when not)
-        if roomy_left and (n == FIRST_OWN or n == 1 and not first_found):
+        if roomy_left and (n == FIRST_OWN or n == 1 and len(made) == start):
             roomy_left = False
-            yield from _roomy_candidates(sol)
+            yield from _roomy_candidates(sol, made)
         d_fraction = pin * ext / length
 
-        def run(n=n, loop=loop, d_fraction=d_fraction, rf=rf) -> tuple:
+        def run(loop=loop, d_fraction=d_fraction, rf=rf) -> tuple:
             s = realize_variant(sol, loop, d_fraction, rf)
-            if n == 0:
-                first_found.append(True)
+            made.append(s)
             return s.realization, s.end_effector
 
         yield Candidate(f"loop {loop}, offset d = {d_fraction:.3g} l, bars {rf:g} d", loop,
-                        run, lambda real, ee, loop=loop, d_fraction=d_fraction, rf=rf:
-                        _found(_variant(sol, loop, d_fraction, rf), real, ee))
+                        run)
 
 
 def note(sol: Solution, printed: Printed) -> str:
@@ -201,15 +189,10 @@ def make(sol: Solution, opts: Options | None = None, progress: Progress | None =
     if not sol.design.realization.enabled:
         raise RealizationError("the design has no realization (enable it in the design "
                                "file: realization.enabled)", "bad-parameters")
-    offered: dict[str, Candidate] = {}
-
-    def offer() -> Iterator[Candidate]:  # each candidate kept by its label
-        for cand in candidates(sol, opts.printer):
-            offered[cand.label] = cand
-            yield cand
-
-    printed = printable.make(offer(), opts, sol.design.drive, progress, on_parts)
-    chosen = offered[printed.candidate].solution(printed.realization, printed.effector)
+    made: list[Solution] = []
+    printed = printable.make(candidates(sol, opts.printer, made), opts, sol.design.drive,
+                             progress, on_parts)
+    chosen = next(s for s in made if s.realization is printed.realization)
     chosen = replace(chosen, realization_report={
         **chosen.realization_report, "printed": note(sol, printed)})
     return printed, chosen

@@ -151,9 +151,10 @@ def test_roomy_candidates_follow_a_first_search_that_found_none(first_found, mon
         return SimpleNamespace(realization=None, end_effector=None)
 
     monkeypatch.setattr(printed, "realize_variant", variant)
-    monkeypatch.setattr(printed, "_roomy_candidates", lambda sol: iter(
+    monkeypatch.setattr(printed, "_roomy_candidates", lambda sol, made: iter(
         [choice.Candidate("roomy", 0, lambda: (None, None))]))
-    cands = printed.candidates(sol, printable.Options().printer)
+    made: list = []
+    cands = printed.candidates(sol, printable.Options().printer, made)
     first = next(cands)
     if first_found:
         first.make()

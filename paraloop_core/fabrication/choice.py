@@ -13,7 +13,6 @@ from __future__ import annotations
 import itertools
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
-from typing import Any
 
 from paraloop_core.errors import FabricationError, RealizationError
 from paraloop_core.fabrication import bed, flat, joints, profiles, remedy, rows, sizing
@@ -35,15 +34,13 @@ FLAT_SEARCH = 2
 
 @dataclass(frozen=True)
 class Candidate:
-    """A realization to try: what it is (``label``), the design ``loop`` index, ``make()``
+    """A realization to try: what it is (``label``), the design ``loop`` index, and ``make()``
     returning ``(Realization, end-effector realization or None)`` or raising
-    :class:`RealizationError`, and ``solution(realization, effector)``: the solution whose
-    result file the printed loop gets (None: the caller needs none)."""
+    :class:`RealizationError`."""
 
     label: str
     loop: int
     make: Callable[[], tuple[Realization, object | None]]
-    solution: Callable[[Realization, object | None], Any] | None = None
 
 
 def cut(layouts: Iterable[joints.Joint]) -> bool:
@@ -90,43 +87,27 @@ def choose(candidates: Iterable[Candidate], opts: Options, progress: Progress | 
            ) -> tuple[list[tuple[Candidate, Realization, object | None, sizing.Plan]],
                       list[str]]:
     """The sized candidates, best first (module docstring), and what was tried. Raises
-    :class:`FabricationError` naming every failure when none can be sized, and for joints
-    printed in place on a loop whose axes do not allow it (:func:`joints.in_place_refusal`)."""
-    tried: list[str] = []
-    roomless: list[remedy.Refused] = []
-    sized = _weigh(itertools.islice(candidates, MAX_CANDIDATES), opts, progress, tried,
-                   roomless)
-    if not sized:
-        # the hardware is the same at every size, the room between the links grows with it
-        raise FabricationError(remedy.refusal(tried, roomless, opts,
-                                              lambda r, o, e: _plan(r, o, ee=e)),
-                               "bad-parameters")
-    return sorted(sized, key=lambda c: _score(c[3]), reverse=True), tried
-
-
-def _weigh(cands: Iterable[Candidate], opts: Options, progress: Progress | None,
-           tried: list[str], roomless: list
-           ) -> list[tuple[Candidate, Realization, object | None, sizing.Plan]]:
-    """The candidates sized (:func:`_sized`) until enough are (:data:`ENOUGH_SIZED`); each
-    tried one said in ``tried``, those without room for their joints in ``roomless``
-    (:func:`remedy.refusal`)."""
-    sized, lifted = [], []
-    for n, cand in enumerate(cands):
+    :class:`FabricationError` naming every failure when none can be sized (with what would
+    work: :func:`remedy.refusal`), and for joints printed in place on a loop whose axes do
+    not allow it (:func:`joints.in_place_refusal`)."""
+    tried, sized, lifted, roomless = [], [], [], []
+    for n, cand in enumerate(itertools.islice(candidates, MAX_CANDIDATES)):
         if progress is not None:
             progress(n / MAX_CANDIDATES, f"sizing {cand.label}")
         try:
-            out = _sized(cand, opts)
+            real, ee = cand.make()
+            if opts.joints == "print-in-place":
+                why = joints.in_place_refusal(loops.factor_axes(real.joint_factors))
+                raise FabricationError(why or "print-in-place is not built by paraloop",
+                                       "bad-parameters")
+            plan = _plan(real, opts, ee=ee)
         except (RealizationError, FabricationError) as exc:
             if opts.joints == "print-in-place":
                 raise
             tried.append(f"{cand.label}: {exc}")
+            if isinstance(exc, sizing.NoRoomError):  # made, but no room at this bed
+                roomless.append((cand.label, real, ee))
             continue
-        if isinstance(out[2], FabricationError):
-            tried.append(f"{cand.label}: {out[2]}")
-            if isinstance(out[2], sizing.NoRoomError):
-                roomless.append((cand.label, out[0], out[1]))
-            continue
-        real, ee, plan = out
         tried.append(f"{cand.label}: {plan.size_mm:.0f} mm, bars "
                      f"{plan.radii.min() * sizing.FLATS:.1f} mm wide or more"
                      + ("" if plan.aims_met else f" ({sizing.LEVELS[plan.level]})"))
@@ -139,24 +120,12 @@ def _weigh(cands: Iterable[Candidate], opts: Options, progress: Progress | None,
         # each would print a link over supports: then a few more
         if enough and (not all(lifted) or len(sized) >= ENOUGH_SIZED + FLAT_SEARCH):
             break
-    return sized
-
-
-def _sized(cand: Candidate, opts: Options
-           ) -> tuple[Realization, object | None, sizing.Plan | FabricationError]:
-    """``cand`` realized and sized: ``(realization, end-effector realization or None, plan
-    or why it has none)``; raises :class:`RealizationError` when it is not found, and
-    :class:`FabricationError` for joints printed in place on a loop whose axes do not allow
-    it (:func:`joints.in_place_refusal`)."""
-    real, ee = cand.make()
-    if opts.joints == "print-in-place":
-        why = joints.in_place_refusal(loops.factor_axes(real.joint_factors))
-        raise FabricationError(why or "print-in-place is not built by paraloop",
+    if not sized:
+        # the hardware is the same at every size, the room between the links grows with it
+        raise FabricationError(remedy.refusal(tried, roomless, opts,
+                                              lambda r, o, e: _plan(r, o, ee=e)),
                                "bad-parameters")
-    try:
-        return real, ee, _plan(real, opts, ee=ee)
-    except FabricationError as exc:
-        return real, ee, exc
+    return sorted(sized, key=lambda c: _score(c[3]), reverse=True), tried
 
 
 def _lifted_by_plan(real: Realization, plan: sizing.Plan, opts: Options) -> bool:

@@ -51,10 +51,10 @@ from paraloop_core.fabrication import (
     thickness,
 )
 from paraloop_core.fabrication.assembly import Assembly
+from paraloop_core.fabrication.choice import Progress
 from paraloop_core.fabrication.profiles import Options
 from paraloop_core.realization.certified import Realization
 
-Progress = Callable[[float, str], None]
 #: Rebuilds with the keels that failed the verification a level lower (:func:`keel.in_the_way`:
 #: wide, narrow, none).
 KEEL_ROUNDS = 3

@@ -63,10 +63,11 @@ def larger_print(refused: Sequence[Refused], opts: Options, size: Sizer) -> str:
                 "realization tried has room for its joints either. What would work: a design "
                 "whose links pass farther apart (other poses, family or mu).")
     for f in FACTORS[:-1]:
+        scaled = _scaled(opts, f)
         for c, _ in roomy:
-            size_mm = _size_mm(c, _scaled(opts, f), size)
+            size_mm = _size_mm(c, scaled, size)
             if size_mm is not None:
-                return _words(c[0], _scaled(opts, f), size_mm)
+                return _words(c[0], scaled, size_mm)
     (label, _, _), size_mm = roomy[0]
     return _words(label, _scaled(opts, FACTORS[-1]), size_mm)
 

@@ -90,9 +90,6 @@ class Split:
                            for d in self.dowels]}
 
 
-_tm = parts.part_trimesh
-
-
 def _components(man: m3d.Manifold) -> list[m3d.Manifold]:
     """The solid's components of volume (booleans on coplanar faces leave slivers of none)."""
     return [m for m in man.decompose() if m.volume() > 1e-3]
@@ -157,7 +154,7 @@ def _arm_down(arm: m3d.Manifold, a: np.ndarray, u: np.ndarray, r: float, link_do
         cut = _one(arm.trim_by_plane(tuple(-d), -level))
         if cut is None:
             continue
-        share = _share(_tm(cut), d)
+        share = _share(parts.part_trimesh(cut), d)
         if best is None or share < best[0]:
             best = (share, cut, d)
     return None if best is None else (best[1], best[2])
@@ -170,7 +167,7 @@ def _end_down(end: m3d.Manifold, bores: list[tuple[np.ndarray, np.ndarray]], bor
     bore keeps its wall, at most :data:`END_CUT_SHARE` of the volume goes), the one needing
     the least support among those standing at most :data:`MAX_HEIGHT_PER_WIDTH` times as
     high as their contact is wide (ties: the lower)."""
-    mesh = _tm(end)
+    mesh = parts.part_trimesh(end)
     order = np.argsort(-mesh.facets_area)[:FACETS]
     best = None
     for d, facet in zip(mesh.facets_normal[order], (mesh.facets[k] for k in order),
@@ -180,7 +177,7 @@ def _end_down(end: m3d.Manifold, bores: list[tuple[np.ndarray, np.ndarray]], bor
         if cut is None or cut.volume() < (1 - END_CUT_SHARE) * end.volume() or not all(
                 _inside(cut, x, x + (half + wall) * u, bore + wall) for x, u in bores):
             continue
-        tm = _tm(cut)
+        tm = parts.part_trimesh(cut)
         if stand_ratio(tm, d) > MAX_HEIGHT_PER_WIDTH:
             continue
         key = (_share(tm, d), float(np.ptp(tm.vertices @ d)))
@@ -233,7 +230,7 @@ def split_end_link(asm: Assembly, mesh: trimesh.Trimesh, down: np.ndarray) -> Sp
             # its arm and nothing else
             end = whole
             for (_, arm, _), d in zip(arms, dowels, strict=True):
-                v = _tm(arm).vertices - d.origin
+                v = parts.part_trimesh(arm).vertices - d.origin
                 along = v @ d.axis
                 reach = np.linalg.norm(v - along[:, None] * d.axis, axis=1).max() + 1.0
                 cutter = parts.cylinder(d.origin + (along.min() - 1.0) * d.axis, d.origin,
@@ -252,8 +249,8 @@ def split_end_link(asm: Assembly, mesh: trimesh.Trimesh, down: np.ndarray) -> Sp
             laid_end = _end_down(end, [(d.origin, d.axis) for d in dowels], bore, half, wall)
             if laid_end is None:
                 continue
-            meshes = {n: _tm(cut - bores[k]) for k, (n, _, cut) in enumerate(arms)}
-            meshes["link_3_end"] = _tm(laid_end[0] - bores[0] - bores[1])
+            meshes = {n: parts.part_trimesh(cut - bores[k]) for k, (n, _, cut) in enumerate(arms)}
+            meshes["link_3_end"] = parts.part_trimesh(laid_end[0] - bores[0] - bores[1])
             if not all(m.is_watertight for m in meshes.values()):
                 continue
             downs["link_3_end"] = laid_end[1]
