@@ -29,7 +29,7 @@ from paraloop_core.fabrication import export as export_files
 from paraloop_core.fabrication.choice import Candidate
 from paraloop_core.fabrication.printable import Options, Printed
 from paraloop_core.fabrication.step_job import StepJob
-from paraloop_core.linkage import drive_plan
+from paraloop_core.linkage import drive_plan, singularity
 from paraloop_core.pipeline import Solution
 from paraloop_core.realization import polyline, realize, roomy
 from paraloop_core.result import json_text, result_to_dict
@@ -123,16 +123,23 @@ def _draws(sol: Solution, loop: int) -> roomy.Draws:
 
 
 def _roomy_candidates(sol: Solution, made: list[Solution]) -> Iterator[Candidate]:
-    """Roomy realizations (:mod:`roomy`) of every loop, the most promising loop first."""
+    """Roomy realizations (:mod:`roomy`) of every loop, the most promising loop first (the
+    near-singular ones last)."""
     draws = {i: _draws(sol, i) for i in range(len(sol.loops))}
-    for loop in sorted(draws, key=lambda i: -draws[i].promise):
+    near = _near_singular(sol)
+    for loop in sorted(draws, key=lambda i: (near[i], -draws[i].promise)):
         def run(loop=loop) -> tuple:
             s = roomy_variant(sol, loop, ROOMY_PIN, draws[loop])
             made.append(s)
             return s.realization, None
 
         yield Candidate(f"loop {loop}, roomy polyline, offset d = {ROOMY_PIN:g} of its extent",
-                        loop, run)
+                        loop, run, near[loop])
+
+
+def _near_singular(sol: Solution) -> list[bool]:
+    """Per loop: whether it is (near) singular (:func:`singularity.loop_status`)."""
+    return [s != "ok" for s in singularity.loop_status(sol.singularity)]
 
 
 def candidates(sol: Solution, printer: printable.Printer, made: list[Solution]
@@ -143,7 +150,7 @@ def candidates(sol: Solution, printer: printable.Printer, made: list[Solution]
     each solution a candidate realizes is appended to ``made`` (the chosen one's result is
     written)."""
     _, length, ext = expected_size(sol, printer)
-    mine = sol.design.loop
+    mine, near = sol.design.loop, _near_singular(sol)
     # the design's loop first; the other loops from the farthest from a singular pose
     others = sorted((i for i in range(len(sol.loops)) if i != mine),
                     key=lambda i: -float(sol.singularity[i]))
@@ -168,7 +175,7 @@ def candidates(sol: Solution, printer: printable.Printer, made: list[Solution]
             return s.realization, s.end_effector
 
         yield Candidate(f"loop {loop}, offset d = {d_fraction:.3g} l, bars {rf:g} d", loop,
-                        run)
+                        run, near[loop])
 
 
 def note(sol: Solution, printed: Printed) -> str:
@@ -193,9 +200,19 @@ def make(sol: Solution, opts: Options | None = None, progress: Progress | None =
     printed = printable.make(candidates(sol, opts.printer, made), opts, sol.design.drive,
                              progress, on_parts)
     chosen = next(s for s in made if s.realization is printed.realization)
-    chosen = replace(chosen, realization_report={
+    chosen = replace(chosen, design=replace(chosen.design, drive=drive_of(
+        printed, chosen.design.drive)), realization_report={
         **chosen.realization_report, "printed": note(sol, printed)})
     return printed, chosen
+
+
+def drive_of(printed: Printed, settings: DriveSettings) -> DriveSettings:
+    """The drive ``settings`` with the motor the printed loop is turned by: where the export
+    moved the motor to a joint whose torque keeps the gaps (report ``drive.motor_chosen``,
+    :func:`printable.make`), that joint."""
+    d = printed.report.get("drive", {})
+    return replace(settings, motor=d["motor"]) if d.get("motor_chosen") == \
+        printable.MOTOR_KEEPS_GAPS else settings
 
 
 def export(sol: Solution, opts: Options | None = None, *, rhino: bool = False,
@@ -254,7 +271,7 @@ def animation(printed: Printed, settings: DriveSettings, frames: int = 240,
     asm = printed.assembly
     g = printed.base.link if printed.base is not None else 0
     jf = asm.joint_factors
-    plan = drive_plan.plan_drive(jf, settings, resting_link=g)
+    plan = drive_plan.plan_drive(jf, drive_of(printed, settings), resting_link=g)
     if plan.schedule is not None:
         t = animate.scheduled_parameters(jf, plan.schedule, frames)
         how = f"motor joint {plan.motor} with its speed schedule"
@@ -288,7 +305,8 @@ def physics_check(printed: Printed, opts: Options, settings: DriveSettings,
     frame, mm) it refers to."""
     from paraloop_core.fabrication import physics, physics_assembly  # MuJoCo loads here
 
-    model = physics_assembly.model_from_assembly(printed.assembly, opts.material, settings)
+    model = physics_assembly.model_from_assembly(printed.assembly, opts.material,
+                                                 drive_of(printed, settings))
     anchored = printed.base is None
     quasi = printed.report["drive"].get("peak_torque_n_m")
     if hand is None:  # a motor where one can hold the loop, else a hand

@@ -9,7 +9,7 @@ import pytest
 
 from paraloop_core.algebra import dq
 from paraloop_core.design import DriveSettings
-from paraloop_core.fabrication import base, choice, drive_mass, profiles
+from paraloop_core.fabrication import base, choice, drive_mass, profiles, stiffness
 from paraloop_core.linkage import drive, loops
 
 
@@ -67,7 +67,7 @@ def test_the_report_entry_and_its_settings():
     assert d["worst_speed_ratio"] == pytest.approx(
         drive.smooth_drive_penalty(asm.joint_factors, d["motor"]))
     assert d["worst_speed_ratio"] < drive.HOLD_RATIO  # a smooth loop: no warning
-    assert not any("cannot hold" in w for w in pr.report["warnings"])
+    assert not any("no motor holds" in w for w in pr.report["warnings"])
     # the design's motor is used as given; twice the masses, twice the torque
     masses, centers = base.link_masses(asm, F.PLA.density_g_cm3)
     args = (asm.joint_factors, asm.scale)
@@ -115,5 +115,79 @@ def test_a_loop_one_motor_cannot_hold_is_named(monkeypatch):
     pr = printable.make([cand], printable.Options(size_mm=F.SIZE_MM, samples=16,
                                                   ground=False))
     ratio = pr.report["drive"]["worst_speed_ratio"]
-    warning = next(w for w in pr.report["warnings"] if "cannot hold" in w)
+    warning = next(w for w in pr.report["warnings"] if "no motor holds" in w)
     assert f"{ratio:.0f} times slower" in warning and "smooth-drive" in warning
+
+
+def test_gap_closed_names_the_pair_furthest_under_three_deflections():
+    pairs = [{"links": [0, 1], "adjacent": True, "continuous_min_gap_mm": 0.1},
+             {"links": [0, 2], "adjacent": False, "continuous_min_gap_mm": 7.0},
+             {"links": [1, 3], "adjacent": False, "continuous_min_gap_mm": 5.0}]
+    total = np.array([1.0, 0.5, 1.0, 1.0, 0.0, 0.0])
+    # 0-2 needs 3 x 2 = 6 mm (kept), 1-3 needs 4.5 mm (kept); adjacent pairs never count
+    assert stiffness.gap_closed(total, pairs) is None
+    closed = stiffness.gap_closed(2 * total, pairs)  # 12 mm and 9 mm needed
+    assert closed == {"links": [0, 2], "deflection_mm": [2.0, 2.0], "gap_mm": 7.0,
+                      "required_gap_mm": 12.0}
+    entry = {"worst_speed_ratio": 2.0, "peak_torque_n_m": 0.5, "motor": 3,
+             "motor_bends": closed, "moving_mass_kg": 0.1, "density_kg_m3": 1240.0}
+    assert drive_mass.by_hand(entry) and "bend links 0 and 2 by 2.0 and 2.0 mm" in \
+        drive_mass.hand_reason(entry) and "by hand" in drive_mass.drive_line(entry)
+    assert not drive_mass.by_hand({**entry, "motor_bends": None})
+
+
+def test_a_motor_that_would_bend_links_shut_is_not_used(monkeypatch):
+    """A motor 1000 times stronger than the loop needs (a stiff joint, a stiff gear): its
+    peak torque would bend two links without a common joint into each other; the export
+    turns the loop by hand, says why, and its deflections (self-weight only) keep every
+    verified gap."""
+    from paraloop_core.fabrication import printable
+
+    cand = choice.Candidate("test loop", 4, lambda: (F.real(), None))
+    opts = printable.Options(size_mm=F.SIZE_MM, samples=16, ground=False)
+    stiff = printable.make([cand], opts).report
+    assert "motor_bends" not in stiff["drive"]
+    assert stiff["stiffness"]["links"][0]["torque_deflection_mm"] is not None
+    entry = drive_mass.entry
+    monkeypatch.setattr(drive_mass, "entry", lambda *a, **k: {
+        **entry(*a, **k), "peak_torque_n_m": 1e3 * stiff["drive"]["peak_torque_n_m"]})
+    report = printable.make([cand], opts).report
+    bent = report["drive"]["motor_bends"]
+    assert bent["required_gap_mm"] > bent["gap_mm"]
+    assert drive_mass.by_hand(report["drive"])
+    assert all(s["torque_deflection_mm"] is None for s in report["stiffness"]["links"])
+    assert any(f"bend links {bent['links'][0]} and {bent['links'][1]}" in w
+               for w in report["warnings"])
+    sag = {s["link"]: s["sag_mm"] for s in report["stiffness"]["links"]}
+    for p in report["verification"]["pairs"]:
+        a, b = p["links"]
+        assert p["adjacent"] or p["continuous_min_gap_mm"] >= 3 * (sag[a] + sag[b])
+
+
+def test_the_motor_moves_to_a_joint_whose_torque_keeps_the_gaps(monkeypatch):
+    """Only the recommended joint's torque would bend links shut: the motor moves to the
+    smoothest other joint that holds the loop, the report, the warning and the drive the
+    animation and the physics check use (:func:`printed.drive_of`) say so."""
+    from paraloop_core import printed as printed_mod
+    from paraloop_core.design import DriveSettings
+    from paraloop_core.fabrication import printable
+
+    cand = choice.Candidate("test loop", 4, lambda: (F.real(), None))
+    opts = printable.Options(size_mm=F.SIZE_MM, samples=16, ground=False)
+    first = printable.make([cand], opts).report["drive"]
+    entry = drive_mass.entry
+
+    def strong_first(*a, **k):
+        e = entry(*a, **k)
+        return {**e, "peak_torque_n_m": e["peak_torque_n_m"] * (
+            1e3 if e["motor"] == first["motor"] else 1.0)}
+
+    monkeypatch.setattr(drive_mass, "entry", strong_first)
+    pr = printable.make([cand], opts)
+    d = pr.report["drive"]
+    assert d["motor_chosen"] == printable.MOTOR_KEEPS_GAPS and d["motor"] != first["motor"]
+    assert d["motor_bends_at"]["motor"] == first["motor"] and not drive_mass.by_hand(d)
+    assert pr.report["stiffness"]["motor_torque_nm"] == pytest.approx(d["peak_torque_n_m"])
+    assert any(f"the motor is on joint {d['motor']}" in w for w in pr.report["warnings"])
+    assert printed_mod.drive_of(pr, DriveSettings()).motor == d["motor"]
+    assert printed_mod.drive_of(pr, DriveSettings(motor=None)).cycle_time_s == 10.0

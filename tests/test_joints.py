@@ -13,7 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from paraloop_core.errors import FabricationError
-from paraloop_core.fabrication import csg, joints, parts, profiles
+from paraloop_core.fabrication import csg, guide, joints, parts, profiles
 from paraloop_core.linkage import loops
 
 GENERIC = profiles.PRINTERS["generic"]
@@ -251,11 +251,29 @@ def test_refusals():
     with pytest.raises(FabricationError, match="boss radius") as err:
         pin("m3", boss=2.0)
     assert err.value.reason == "bad-parameters"
-    with pytest.raises(FabricationError, match="longer than stock"):
-        pin("m3", length=60.0)
     for kind in ("print-in-place", "m5"):
         with pytest.raises(FabricationError, match="cannot be laid out"):
             pin(kind)
+
+
+@pytest.mark.parametrize(("kind", "stock"), [("m2", 30.0), ("m3", 50.0), ("m4", 60.0)])
+def test_a_joint_longer_than_stock_screws_turns_on_a_rod_cut_to_length(kind, stock):
+    """Just inside the longest stock screw: a screw joint; past it: a dowel (a steel rod of
+    the screw's diameter cut to length), glued in link j's boss, capped past link j+1's,
+    each boss holding it at least the engagement target."""
+    f = profiles.FASTENERS[kind]
+    fits = [L for L in np.arange(10.0, 80.0, 0.5) if pin(kind, L, boss=7.0).kind == kind]
+    assert fits and max(fits) < 80.0
+    j = pin(kind, max(fits), boss=7.0)
+    assert j.screw_mm == stock and not j.beyond_stock
+    j = pin(kind, max(fits) + 0.5, boss=7.0)
+    assert j.kind == "dowel" and j.beyond_stock and j.screw_mm is None
+    assert j.fixed_link == 0 and j.axle_d == f.d_mm
+    cap = next(p for p in j.pieces if p.role == "dowel cap")
+    assert cap.printed and cap.s0 > j.upper[1]  # past link j+1's outer face
+    assert j.axle.s1 - j.axle.s0 > stock - 10.0
+    assert min(held(j)) >= profiles.ENGAGE_TARGET * f.d_mm - 1e-9
+    assert "cut a" in guide._joint_text(j, 0) and "steel rod" in guide._joint_text(j, 0)
 
 
 @pytest.mark.parametrize(("kind", "side"), KINDS)

@@ -404,14 +404,18 @@ def test_a_blow_up_is_reported_not_raised(monkeypatch):
 
 
 def test_a_loop_no_motor_holds_is_turned_by_the_rigid_hand(monkeypatch):
-    """Random design 62009 (its motion's worst speed ratio is over 600): the motor's run loses
-    the loop; held opposite the grounded link, one half of the loop is nearly a mechanism at
-    home and the links sag off by tens of mm; held at the link ``hand_link`` picks (both
-    halves rigid over the cycle), the loop follows its prediction."""
+    """Random design 62009 printed on its near-singular loop 6 (the export now prefers loop
+    4; its motion's worst speed ratio is over 600): the motor's run loses the loop; held
+    opposite the grounded link, one half of the loop is nearly a mechanism at home and the
+    links sag off by tens of mm; held at the link ``hand_link`` picks (both halves rigid
+    over the cycle), the loop follows its prediction."""
     from independent.generic_designs import random_design
 
     design = design_mod.design_from_dict(random_design(62009))
-    made, _ = printed.make(pipeline.solve(design), printable.Options(samples=8))
+    sol, opts = pipeline.solve(design), printable.Options(samples=8)
+    six = [c for c in printed.candidates(sol, opts.printer, []) if c.loop == 6]
+    assert six[0].near_singular
+    made = printable.make(six, opts, design.drive)
     assert made.report["drive"]["worst_speed_ratio"] > HOLD_RATIO
     # turned by hand: no motor torque bends a bar (the report says so, sag only)
     stiff = made.report["stiffness"]
@@ -432,7 +436,9 @@ def test_a_loop_no_motor_holds_is_turned_by_the_rigid_hand(monkeypatch):
 def test_a_hold_that_loses_the_loop_gives_way_to_the_next():
     """Random design 62162 (grounded on link 1): the measure ranks link 3 first, but held
     there one half of the loop gives (the links 20 mm off, tolerance 4.5 mm); the check then
-    holds link 4, where the loop follows its prediction, and names it."""
+    holds link 4, where the loop follows its prediction (2.5 mm at most on the 236 mm print,
+    whose long joints turn on rods cut to length; 1.8 mm at 220 mm on stock screws), and
+    names it."""
     from independent.generic_designs import random_design
 
     design = design_mod.design_from_dict(random_design(62162))
@@ -443,7 +449,7 @@ def test_a_hold_that_loses_the_loop_gives_way_to_the_next():
     assert sorted((k - model.grounded_link) % 6 for k in ranked) == [2, 3, 4]
     rep = physics.simulate(model, hand=True)
     assert rep.completed and rep.hand_link != ranked[0]
-    assert rep.max_pose_error_mm < 0.5 * rep.pose_tolerance_mm
+    assert rep.max_pose_error_mm < 0.7 * rep.pose_tolerance_mm
 
 
 def test_studio_card_names_no_motor_torque_for_a_loop_no_motor_holds(tv8_made, monkeypatch):

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from types import SimpleNamespace
 
 import fab_fixtures as F
@@ -23,6 +24,7 @@ from paraloop_core.fabrication import (
     sizing,
     stiffness,
 )
+from paraloop_core.linkage import singularity
 
 GENERIC = profiles.PRINTERS["generic"]
 ROD = profiles.DEFAULT_ROD
@@ -170,6 +172,32 @@ def test_aims_then_floors(bounds):
     assert sizing.to_dict(big, GENERIC, bounds)["level"] == "floors"
 
 
+def test_the_floors_precheck_only_skips_what_has_no_plan(bounds, monkeypatch):
+    """:func:`sizing._floors_fit` skips a level's deflection bounds at a size where bars at
+    their floors with the least gaps already break a row: over sizes from roomy to cramped,
+    every plan found with the precheck is the one found without it, and the precheck
+    skips some sizes (it would be pointless otherwise)."""
+    real, matrix = F.real(), stiffness.torque_matrix(F.real())
+
+    def plans() -> list:
+        return [sizing.at_scale(real, bounds, s / bounds.extent, GENERIC, F.PLA, "m3", ROD,
+                                0.05, matrix, level) for s in (130.0, 160.0, 220.0, 300.0, 400.0)
+                for level in (0, 1)]
+
+    skipped = [not sizing._floors_fit(bounds, s / bounds.extent, sizing.min_radii(
+        bounds, s / bounds.extent, GENERIC, "m3", level), GENERIC, "m3", 0.05,
+        sizing.min_boss(GENERIC, "m3", ROD)) for s in (130.0, 160.0, 220.0, 300.0, 400.0)
+        for level in (0, 1)]
+    with_check = plans()
+    monkeypatch.setattr(sizing, "_floors_fit", lambda *a: True)
+    without = plans()
+    assert any(skipped) and not all(skipped)
+    for a, b, skip in zip(with_check, without, skipped, strict=True):
+        assert (a is None) == (b is None) and (not skip or b is None)
+        if a is not None:
+            assert a.radii == pytest.approx(b.radii) and a.level == b.level
+
+
 def test_too_small_a_size_is_refused():
     with pytest.raises(FabricationError, match="at 120 mm") as err:
         sizing.plan(F.real(), GENERIC, F.PLA, "m3", ROD, size_mm=120.0)
@@ -182,14 +210,29 @@ def test_report_entry_and_the_limiting_pair(bounds):
     assert d["bar_width_mm"] == pytest.approx(p.radii * SQ3)
     assert d["level"] == "aims" and d["size_mm"] == pytest.approx(p.size_mm)
     lim = d["limiting_pair"]
-    thin = int(np.argmin(p.radii))
+    width = p.radii * SQ3
+    short = np.maximum(6.4 / width, p.deflection.lengths / width / 28.0)
+    thin = int(np.argmax(short))
     assert lim["thinnest_bar_link"] == thin and thin in lim["links"]
+    assert lim["bar_width_mm"] == pytest.approx(width[thin])
     assert lim["room_left_mm"] >= -1e-6  # the plan keeps every row
     # the consecutive bars on the thin bar's joints count too (two links on one joint)
     k, r = p.scale, p.radii
     joint_rows = [k * bounds.joint_lower[i] - r[i] - r[(i + 1) % 6] - p.gaps[i, (i + 1) % 6]
                   for i in (thin, (thin - 1) % 6) if np.isfinite(bounds.joint_lower[i])]
     assert lim["room_left_mm"] <= min(joint_rows, default=np.inf) + 1e-9
+
+
+def test_the_limiting_pair_of_equal_bars_is_the_longest_bars(bounds):
+    """Bars all as thick (the last level's): the pair named is the longest bar's, the one
+    furthest from the length per width a printed bar should keep, with what it reaches."""
+    p = F.plan("m4")
+    p = replace(p, radii=np.full(6, p.radii.min()))
+    lim = sizing.to_dict(p, GENERIC, bounds)["limiting_pair"]
+    longest = int(np.argmax(p.deflection.lengths))
+    assert lim["thinnest_bar_link"] == longest and longest in lim["links"]
+    assert lim["length_per_width"] == pytest.approx(
+        p.deflection.lengths[longest] / (p.radii[0] * SQ3))
 
 
 def test_automatic_size_fits_the_bed():
@@ -265,6 +308,20 @@ def test_choice_names_every_failure_and_keeps_the_sized():
     small = printable.Options(size_mm=60.0)
     with pytest.raises(FabricationError, match="roomy: at 60 mm"):
         choice.choose([good], small)
+
+
+def test_a_loop_far_from_singular_is_printed_before_a_near_singular_one():
+    """Equal plans: the near-singular loop's candidate ranks last, and does not count
+    towards the candidates that are enough to choose from."""
+    real = F.real()
+    near = choice.Candidate("near", 4, lambda: (real, None), near_singular=True)
+    cands = [near] + [choice.Candidate(f"ok{k}", 4, lambda: (real, None)) for k in range(3)]
+    ranked, tried = choice.choose(cands, printable.Options())
+    assert ranked[0][3].aims_met and [c.label for c, *_ in ranked] == ["ok0", "ok1", "near"]
+    ranked, _ = choice.choose(cands[::-1], printable.Options())
+    assert [c.label for c, *_ in ranked] == ["ok2", "ok1"]  # enough before the near one
+    assert singularity.loop_status(np.array([1.0, 2e-3, 1e-3, 1e-9, 0.0])) == \
+        ["ok", "ok", "near-singular", "singular", "singular"]
 
 
 @pytest.mark.parametrize("lifted", [False, True])

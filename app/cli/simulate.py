@@ -1,8 +1,8 @@
 """``paraloop simulate DESIGN.json [--out DIR]``: the physics check of the printed parts.
 
 Solves the design, makes its printed loop in memory as ``paraloop export`` does (the generic
-printer; the export's own verification over the cycle runs at its minimum of 8 samples: it
-does not change the parts, and the simulation checks contacts) and runs one cycle
+printer, the export's own verification over the cycle: its gaps decide whether the motor's
+torque would bend links into each other, and so the drive) and runs one cycle
 (:func:`printed.physics_check`): standing free on its base on a table, or anchored
 (``--anchored``; also when there is no base); driven by its motor, or turned by hand where one
 motor cannot hold the loop (``--drive``). Prints one summary line; with ``--out``, writes
@@ -43,8 +43,8 @@ def run(design: Design, sol: pipeline.Solution, anchored: bool, hand: bool | Non
         ) -> tuple[dict, list]:
     """``(physics.json content, files)`` of one design (module docstring); ``hand``: turned
     by hand or by the motor (None: by hand where one motor cannot hold the loop)."""
-    made, _ = printed.make(sol, printable.Options(samples=8))
     opts = printable.Options()
+    made, _ = printed.make(sol, opts)
     if anchored and made.base is not None:
         made = replace(made, base=None)  # the base fixed in the world: mounted
     content, files = printed.physics_check(made, opts, design.drive, hand)

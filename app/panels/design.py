@@ -22,7 +22,7 @@ from app.status import unit_factor
 from app.worker import FRAME, FULL
 from paraloop_core.algebra import dq, poly
 from paraloop_core.design import Design, Pose
-from paraloop_core.linkage import loops
+from paraloop_core.linkage import loops, singularity
 from paraloop_core.motion.evolution import evolution_settings
 
 if TYPE_CHECKING:
@@ -55,14 +55,6 @@ def score_text(value: float) -> str:
     if value >= 1e-3:
         return f"{value:.2g}"
     return f"{value:.0e}"
-
-
-def loop_status(singularity: np.ndarray) -> list[str]:
-    """Status word per loop from its singularity measure, relative to the largest of the nine."""
-    s = np.asarray(singularity, float)
-    ref = max(float(s.max()), 1e-300)
-    return ["singular" if v <= 1e-9 * ref else "near-singular" if v <= 1e-3 * ref
-            else "ok" for v in s]
 
 
 #: Smallest half-range of the mu slider; it widens to show any mu of the design.
@@ -357,7 +349,7 @@ class Panels:
     def show_solution(self, sol: Any) -> None:
         """Loop picker labels with singularity values/status, and the mu actually used."""
         with writing_back():
-            status = loop_status(sol.singularity)
+            status = singularity.loop_status(sol.singularity)
             opts = tuple(loop_label(k, float(sol.singularity[k]), status[k]) for k in range(9))
             self.loop.options = opts
             self.loop.value = opts[sol.design.loop]

@@ -104,8 +104,8 @@ def card_text(parts: Parts) -> str:
         lines.append(f"- **Weight:** {total:.0f} g in all, {plastic:.0f} g of it printed "
                      f"{drive['material']}")
         if drive_mass.by_hand(drive):
-            lines.append("- **Motor:** none; one motor cannot hold this loop: turn it by hand, "
-                         "holding the base and a link across the loop (see the note)")
+            lines.append("- **Motor:** none; turn it by hand, holding the base and a link "
+                         "across the loop: " + drive_mass.hand_reason(drive))
         else:
             lines.append(f"- **Motor:** {drive['peak_torque_n_m']:.2g} N·m at most on joint "
                          f"{drive['motor']} (turned slowly)")
@@ -134,8 +134,8 @@ def physics_text(rep: dict) -> str:
     contact = ("no contact between links without a common joint" if n == 0 else
                f"**{n} contacts** between links without a common joint")
     if rep.get("drive") == "hand":
-        base = (f"turned by hand (the base held, link {rep['hand_link']} moved: one motor "
-                "cannot hold this loop)")
+        base = (f"turned by hand (the base held, link {rep['hand_link']} moved: no motor "
+                "drives this loop, see Motor above)")
     elif rep.get("anchored"):
         base = "held by its resting link (no base)"
     elif rep["stands"]:
@@ -162,8 +162,8 @@ class SummaryCard:
             self.physics_button = gui.add_button(
                 "Run physics check", disabled=True, icon=viser.Icon.PLAYER_PLAY,
                 hint="simulate the parts above through one cycle (MuJoCo: their masses, the "
-                     "motor, gravity, standing on a table; turned by hand instead where one "
-                     "motor cannot hold the loop): does it complete the cycle, do parts "
+                     "motor, gravity, standing on a table; turned by hand instead where no "
+                     "motor drives the loop): does it complete the cycle, do parts "
                      "touch, does the base tip, and the torque with inertia; takes several "
                      "seconds, in the background")
             self.physics = gui.add_markdown(NOT_RUN)

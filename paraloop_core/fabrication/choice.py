@@ -3,9 +3,10 @@
 :func:`choose` takes candidate realizations (lazily: each is a new, equally certified search,
 made by the caller, which knows the design), sizes each (:func:`sizing.plan`: the largest size
 whose parts fit the bed, the thickest bars the certificate allows, joints with real hardware)
-and ranks them: the width and length/width aims met, then the largest size, then the thickest
-thinnest bar; the first candidate is the design's own loop. When none can be sized, the
-refusal says why and what would work (:mod:`remedy`).
+and ranks them: fewest flaws (a bar cut across, bars thinner than the floors, a loop near a
+singular pose: :func:`singularity.loop_status`), the width and length/width aims met, then the
+largest size, then the thickest thinnest bar; the first candidate is the design's own loop.
+When none can be sized, the refusal says why and what would work (:mod:`remedy`).
 """
 
 from __future__ import annotations
@@ -36,11 +37,13 @@ FLAT_SEARCH = 2
 class Candidate:
     """A realization to try: what it is (``label``), the design ``loop`` index, and ``make()``
     returning ``(Realization, end-effector realization or None)`` or raising
-    :class:`RealizationError`."""
+    :class:`RealizationError`; ``near_singular``: the loop's cycle passes close to a
+    singular configuration (:func:`singularity.loop_status`)."""
 
     label: str
     loop: int
     make: Callable[[], tuple[Realization, object | None]]
+    near_singular: bool = False
 
 
 def cut(layouts: Iterable[joints.Joint]) -> bool:
@@ -49,12 +52,13 @@ def cut(layouts: Iterable[joints.Joint]) -> bool:
     return any(any(j.cut) for j in layouts)
 
 
-def _score(plan: sizing.Plan) -> tuple:
-    # a bar cut across its core or thinner than the floors is what a maker sees first; then
+def _score(cand: Candidate, plan: sizing.Plan) -> tuple:
+    # a bar cut across its core or thinner than the floors is what a maker sees first, and
+    # a loop that may switch branches or jam near a singular pose what it does first; then
     # the level, the joints, the size
     kinds = profiles.AUTO_JOINTS
     rank = -kinds.index(plan.kind) if plan.kind in kinds else 0
-    flaws = int(cut(plan.layouts)) + int(plan.level >= 3)
+    flaws = int(cut(plan.layouts)) + int(plan.level >= 3) + int(cand.near_singular)
     return (-flaws, -plan.level, rank, round(plan.size_mm, 0), float(plan.radii.min()))
 
 
@@ -113,7 +117,8 @@ def choose(candidates: Iterable[Candidate], opts: Options, progress: Progress | 
                      + ("" if plan.aims_met else f" ({sizing.LEVELS[plan.level]})"))
         sized.append((cand, real, ee, plan))
         lifted.append(_lifted_by_plan(real, plan, opts))
-        enough = sum(c[3].aims_met and not cut(c[3].layouts) for c in sized) >= \
+        enough = sum(c[3].aims_met and not cut(c[3].layouts) and not c[0].near_singular
+                     for c in sized) >= \
             (1 if opts.size_mm is not None else 2) \
             or len(sized) >= ENOUGH_SIZED
         # two that meet the aims (the design's loop first) are enough to choose from, unless
@@ -125,7 +130,7 @@ def choose(candidates: Iterable[Candidate], opts: Options, progress: Progress | 
         raise FabricationError(remedy.refusal(tried, roomless, opts,
                                               lambda r, o, e: _plan(r, o, ee=e)),
                                "bad-parameters")
-    return sorted(sized, key=lambda c: _score(c[3]), reverse=True), tried
+    return sorted(sized, key=lambda c: _score(c[0], c[3]), reverse=True), tried
 
 
 def _lifted_by_plan(real: Realization, plan: sizing.Plan, opts: Options) -> bool:

@@ -78,10 +78,30 @@ def material(density_kg_m3: float) -> str:
     return f"{name} {rho:g} kg/m^3"
 
 
+def hand_reason(entry: dict) -> str | None:
+    """Why a report's ``drive`` entry (:func:`entry`) has the loop turned by hand, or None
+    (a motor drives it): one motor cannot hold the loop (its worst speed ratio past
+    :data:`drive.HOLD_RATIO`), or the motor's peak torque would bend two links without a
+    common joint closer than the gap they keep allows (``motor_bends``, set by the export:
+    :func:`stiffness.gap_closed`)."""
+    ratio = entry.get("worst_speed_ratio", 0.0)
+    if ratio > drive.HOLD_RATIO:
+        return (f"in part of its turn the motor's joint would move {ratio:.0f} times slower "
+                "than the fastest joint, so no motor holds the loop there (its links swing "
+                "under gravity)")
+    bent = entry.get("motor_bends")
+    if bent:
+        (a, b), (da, db) = bent["links"], bent["deflection_mm"]
+        return (f"the motor's peak torque ({entry['peak_torque_n_m']:.2g} N m on joint "
+                f"{entry['motor']}) would bend links {a} and {b} by {da:.1f} and {db:.1f} mm, "
+                f"and the {bent['gap_mm']:.1f} mm they keep apart over the cycle is less than "
+                f"the {bent['required_gap_mm']:.0f} mm (3 x that) that would keep them apart")
+    return None
+
+
 def by_hand(entry: dict) -> bool:
-    """Whether a report's ``drive`` entry (:func:`entry`) says that one motor cannot hold
-    the loop (its worst speed ratio past :data:`drive.HOLD_RATIO`): it is turned by hand."""
-    return entry.get("worst_speed_ratio", 0.0) > drive.HOLD_RATIO
+    """Whether a report's ``drive`` entry says to turn the loop by hand (:func:`hand_reason`)."""
+    return hand_reason(entry) is not None
 
 
 def drive_line(entry: dict) -> str:
@@ -90,10 +110,9 @@ def drive_line(entry: dict) -> str:
     if "error" in entry:
         return f"motor torque not computed: {entry['error']}"
     if by_hand(entry):
-        return (f"turn it by hand (holding the base and a link across the loop): in part of "
-                f"its turn the best motor's joint moves {entry['worst_speed_ratio']:.0f} times "
-                f"slower than the fastest, so no motor holds it; "
-                f"{entry['moving_mass_kg']:.3g} kg moving ({material(entry['density_kg_m3'])})")
+        return (f"turn it by hand (holding the base and a link across the loop): "
+                f"{hand_reason(entry)}; {entry['moving_mass_kg']:.3g} kg moving "
+                f"({material(entry['density_kg_m3'])})")
     return (f"motor joint {entry['motor']} (resting link {entry['resting_link']}): peak torque "
             f"{entry['peak_torque_n_m']:.3g} N*m for {entry['moving_mass_kg']:.3g} kg moving "
             f"({material(entry['density_kg_m3'])})")

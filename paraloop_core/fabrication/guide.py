@@ -41,8 +41,11 @@ def _joint_text(j, first: int) -> str:
     if kind == "dowel":
         fixed = j.fixed_link
         free = b if fixed == a else a
+        why = (f"no stock screw is as long as this joint (cut a {j.axle_d:g} mm steel rod to "
+               f"{j.axle.s1 - j.axle.s0:.0f} mm)" if j.beyond_stock else
+               f"link {fixed}'s bar runs on past this joint, so no screw fits")
         return (f"Joint {a} joins link {a} and link {b} on a {j.axle_d:g} mm steel dowel: "
-                f"link {fixed}'s bar runs on past this joint, so no screw fits. Glue the dowel "
+                f"{why}. Glue the dowel "
                 f"into the blind bore of link {fixed} (to its floor), slide link {free} on, "
                 "then glue the printed dowel cap onto the dowel's end, leaving the joint free "
                 f"to turn (no glue on link {free}).")
@@ -94,9 +97,8 @@ def guide_text(asm, report: dict, material: profiles.Material, pictures: dict[st
                                                 if b["stands"] else f"{b['mount']}."))
     d = report.get("drive", {})
     if drive_mass.by_hand(d):
-        summary.append("Drive: by hand, holding the base and a link across the loop; no motor "
-                       "holds this loop (in part of its turn the motor's joint would move "
-                       f"{d['worst_speed_ratio']:.0f} times slower than the fastest).")
+        summary.append("Drive: by hand, holding the base and a link across the loop, not by "
+                       f"a motor: {drive_mass.hand_reason(d)}.")
     elif "peak_torque_n_m" in d:
         summary.append(f"Motor (optional): on joint {d['motor']}, at least "
                        f"{d['peak_torque_n_m']:.2f} N m against gravity.")

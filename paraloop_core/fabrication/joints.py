@@ -26,6 +26,8 @@ Joint j (axis ``A_j``) joins link j (its bar ends at ``E_j``) and link j+1 (its 
   printed cap glued on its end outside the other boss; where both bars leave past their
   bosses' outer faces, the other link's bore is blind too, its floor a clearance past the
   dowel's tip (it keeps that link on; the guide fits this joint before the loop closes);
+  also where no stock screw spans the bosses (a long joint): then a steel rod of the
+  screw's diameter cut to length, glued in link j's boss and capped past link j+1's;
 * kind ``rod``: the grounded joint: the grounding rod is the axle, fixed (press fit, glued) in
   the grounded link's boss, turning in the other link's boss, held by a printed cap glued on
   its end (or, where the cap's room would cut the other link's bar, ending in a blind bore
@@ -106,6 +108,9 @@ class Joint:
     #: whether link j's bar (0) and link j+1's (1) are cut across their centre line here
     #: (:func:`cut_sides`): a crescent where a bar should be, to be avoided where it can be
     cut: tuple[bool, bool] = (False, False)
+    #: kind ``dowel`` where no stock screw spans the bosses (the axle is a rod cut to
+    #: length); otherwise a dowel is where a bar runs on past its boss (:func:`blocked_sides`)
+    beyond_stock: bool = False
 
     def at(self, s: float | np.ndarray) -> np.ndarray:
         """Points ``(..., 3)`` at axial coordinates ``s``."""
@@ -271,9 +276,10 @@ def layout(index: int, origin: np.ndarray, far: np.ndarray, axis: np.ndarray,
     S_{j+1}`` (mm), ``axis`` the joint axis (used when the two points coincide), ``bars``
     link j's bar from ``E_j`` and link j+1's from ``S_{j+1}`` (vectors, mm), their hex
     ``radii``, the ``boss`` radius (a screw joint one of whose bars leaves past its boss's
-    outer face is laid out as a ``dowel``); ``rod_side`` (kind ``rod``): where the rod goes on
-    to the base (0: beyond link j's boss, 1: beyond link j+1's). Raises :class:`FabricationError`
-    for a boss too thin for its axle or a screw longer than stock."""
+    outer face, or whose bosses no stock screw spans, is laid out as a ``dowel``);
+    ``rod_side`` (kind ``rod``): where the rod goes on to the base (0: beyond link j's boss,
+    1: beyond link j+1's). Raises :class:`FabricationError` for a boss too thin for its
+    axle."""
     if kind not in (*profiles.JOINT_KINDS, "rod") or kind == "print-in-place":
         raise FabricationError(f"joint kind {kind!r} cannot be laid out", "bad-parameters")
     origin, far = np.asarray(origin, float), np.asarray(far, float)
@@ -287,14 +293,20 @@ def layout(index: int, origin: np.ndarray, far: np.ndarray, axis: np.ndarray,
     d = axle_diameter(kind, rod)
     gap = fastener_of(kind).washer_t_mm if kind in profiles.FASTENERS else printer.clearance_mm
     m, notch, o_lo, o_up = _bosses(length, bars, w, radii, boss, gap, eps, d, (0.0, 0.0))
+    beyond_stock = False
     if kind in profiles.FASTENERS:
-        blocked = blocked_sides(bars, w, (o_lo, o_up),
-                                fastener_of(kind).reach_r_mm + SEAT_MM + eps)
+        f = fastener_of(kind)
+        blocked = blocked_sides(bars, w, (o_lo, o_up), f.reach_r_mm + SEAT_MM + eps)
+        beyond_stock = not any(blocked) and f.screw_length(
+            _screw_need(f, -o_lo, length + o_up)) is None
         if any(blocked):  # the head or nut would sit inside that bar: a dowel instead,
             # capped past the other link; where both bars run on (a joint in the middle of
             # a nearly straight rod), blind in both: nothing sits outside either boss
             kind, rod_side, cap = "dowel", blocked.index(True), not all(blocked)
             gap = printer.clearance_mm
+        elif beyond_stock:  # no stock screw spans the bosses: a steel rod cut to length,
+            # glued in link j's boss and capped past link j+1's, as a dowel
+            kind, rod_side, gap = "dowel", 0, printer.clearance_mm
     # a dowel's blind bore leaves a floor of a wall under the fixed link's outer face; an
     # axle without a cap ends in a blind bore of the turning link, its floor past the tip
     floor = printer.wall_mm + BOSS_ROOM_MM if kind == "dowel" or not cap else 0.0
@@ -309,7 +321,9 @@ def layout(index: int, origin: np.ndarray, far: np.ndarray, axis: np.ndarray,
     screw, pieces = None, []
     c = printer.clearance_mm
     if kind in profiles.FASTENERS:
-        screw, pieces = _screw_pieces(index, fastener_of(kind), s0, s3, m, gap)
+        f = fastener_of(kind)
+        screw = f.screw_length(_screw_need(f, s0, s3))
+        pieces = _screw_pieces(f, screw, s0, s3, m, gap)
     elif kind == "printed-pin":
         head = boss - 0.5
         # the head stands the clearance off link j's boss as the cap off link j+1's (the
@@ -347,25 +361,24 @@ def layout(index: int, origin: np.ndarray, far: np.ndarray, axis: np.ndarray,
     bores = tuple(bore_radius(kind, printer, rod, held and fixed == k, d) for k in (0, 1))
     j = Joint(index, kind, origin, w, length, m, gap, float(boss), (s0, m - gap / 2),
               (m + gap / 2, s3), bores, tuple(pieces), d, screw, notch,
-              fixed if held else None)
+              fixed if held else None, beyond_stock=beyond_stock)
     return replace(j, cut=cut_sides(j, bars, c, eps))
 
 
-def _screw_pieces(index: int, f: Fastener, s0: float, s3: float, m: float, gap: float
-                  ) -> tuple[float, list[Piece]]:
-    """Stock screw length and the hardware pieces of a screw joint whose bosses span
-    ``[s0, s3]`` (module docstring): washer and head outside link j's face, the thrust
-    washer between the bosses, washer and lock nut outside link j+1's face; the tip passes
-    the nut by at least :data:`PROTRUDE_MM` (more where the next stock length is longer)."""
+def _screw_need(f: Fastener, s0: float, s3: float) -> float:
+    """Length (mm) of screw a joint whose bosses span ``[s0, s3]`` needs: a washer each
+    side, the nut, and :data:`PROTRUDE_MM` of thread past it."""
+    return s3 - s0 + 2 * f.washer_t_mm + f.nut_h_mm + PROTRUDE_MM
+
+
+def _screw_pieces(f: Fastener, screw: float, s0: float, s3: float, m: float, gap: float
+                  ) -> list[Piece]:
+    """The hardware pieces of a screw joint whose bosses span ``[s0, s3]`` (module
+    docstring), its stock ``screw`` length (mm): washer and head outside link j's face, the
+    thrust washer between the bosses, washer and lock nut outside link j+1's face; the tip
+    passes the nut by at least :data:`PROTRUDE_MM` (more where the stock length is longer)."""
     t = f.washer_t_mm
     under, nut0 = s0 - t, s3 + t  # under the head; the nut's inner face
-    need = nut0 + f.nut_h_mm + PROTRUDE_MM - under
-    screw = f.screw_length(need)
-    if screw is None:
-        raise FabricationError(
-            f"joint {index}: the bosses need a {f.name} screw of {need:.0f} mm, longer than "
-            f"stock ({max(f.lengths_mm):g} mm); a shorter joint offset d would do",
-            "bad-parameters")
     washer = f.washer_d_mm / 2
     pieces = [Piece(under - f.head_h_mm, under, f.head_d_mm / 2, "screw head"),
               Piece(under, s0, washer, "washer"),
@@ -373,7 +386,7 @@ def _screw_pieces(index: int, f: Fastener, s0: float, s3: float, m: float, gap: 
               Piece(m - gap / 2, m + gap / 2, washer, "thrust washer"),
               Piece(s3, nut0, washer, "washer"),
               Piece(nut0, nut0 + f.nut_h_mm, f.nut_corner_r_mm, "lock nut", sides=6)]
-    return screw, pieces
+    return pieces
 
 
 def envelope(j: Joint) -> tuple[float, float]:

@@ -25,7 +25,7 @@ report (``choice``, ``sizing``, ``warnings``).
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import NamedTuple
 
 import numpy as np
@@ -53,11 +53,15 @@ from paraloop_core.fabrication import (
 from paraloop_core.fabrication.assembly import Assembly
 from paraloop_core.fabrication.choice import Progress
 from paraloop_core.fabrication.profiles import Options
+from paraloop_core.linkage.drive import peak_speed_ratios
 from paraloop_core.realization.certified import Realization
 
 #: Rebuilds with the keels that failed the verification a level lower (:func:`keel.in_the_way`:
 #: wide, narrow, none).
 KEEL_ROUNDS = 3
+#: The report's ``drive.motor_chosen`` where the recommended motor's torque would bend two
+#: links into the gap they keep and another joint's does not (:func:`make`).
+MOTOR_KEEPS_GAPS = "keeps the gaps"
 
 
 @dataclass(frozen=True)
@@ -200,6 +204,11 @@ def make(candidates: Iterable[choice.Candidate], opts: Options | None = None,
     if choice.cut(asm.joints):
         warnings.append(f"{_cut_words(asm.joints)}: a crescent is left of it there (no "
                         "realization tried avoids this)")
+    if cand.near_singular:
+        warnings.append(f"loop {cand.loop}'s cycle passes close to a singular configuration "
+                        "(no realization of a loop farther from one was sized): turn it slowly "
+                        "near its tightest pose, where a loop with play can switch to another "
+                        "branch of its motion or jam")
     report = {
         "choice": {"realization": cand.label, "loop": cand.loop, "tried": tried,
                    "radius": real.radius, "separation": real.separation},
@@ -222,27 +231,68 @@ def make(candidates: Iterable[choice.Candidate], opts: Options | None = None,
     up = b.up if b is not None else np.array([0.0, 0.0, 1.0])
     report["drive"] = drive_mass.entry(asm.joint_factors, asm.scale, masses, centers, resting,
                                        drive, opts.material, up)
-    hand = drive_mass.by_hand(report["drive"])
-    if hand:
-        ratio = report["drive"]["worst_speed_ratio"]
-        report["warnings"].append(
-            f"in part of its turn the motor's joint moves {ratio:.0f} times slower than the "
-            "fastest joint: a motor cannot hold the loop there (its links swing under "
-            "gravity); turn it by hand, holding the base and a link across the loop (the "
-            "physics check does so), or design a smoother motion (the smooth-drive criterion)")
     # turned by hand, no motor bends a bar: self-weight only (a motor's torque there, 1e3 -
     # 1e8 times a smooth loop's, would read as metres of bending)
-    tq = None if hand else report["drive"].get("peak_torque_n_m", plan.torque_nm)
+    tq = None if drive_mass.by_hand(report["drive"]) else \
+        report["drive"].get("peak_torque_n_m", plan.torque_nm)
     across = stiffness.across_gravity(asm.joint_factors, list(asm.bars), resting, up)
-    defl = stiffness.deflections(plan.deflection.lengths, plan.radii, across,
-                                 opts.material.modulus_gpa, opts.material.density_g_cm3,
-                                 tq or 0.0)
+
+    def bent(torque: float | None) -> stiffness.Deflection:
+        return stiffness.deflections(plan.deflection.lengths, plan.radii, across,
+                                     opts.material.modulus_gpa, opts.material.density_g_cm3,
+                                     torque or 0.0)
+
+    defl = bent(tq)
+    # the sizing planned the torque of its own resting link; where the base rests another
+    # and the recommended motor's torque would bend links into each other, another joint
+    # that holds the loop and keeps the gaps takes the motor, else none (by hand)
+    closed = None if tq is None else stiffness.gap_closed(defl.total, ver["pairs"])
+    if closed is not None and (drive is None or drive.motor is None):
+        other = _motor_keeping_gaps(
+            lambda m: drive_mass.entry(asm.joint_factors, asm.scale, masses, centers, resting,
+                                       replace(drive or DriveSettings(), motor=m),
+                                       opts.material, up),
+            peak_speed_ratios(asm.joint_factors).max(axis=1), report["drive"]["motor"],
+            lambda torque: stiffness.gap_closed(bent(torque).total, ver["pairs"]) is None)
+        if other is not None:
+            report["drive"] = {**other, "motor_bends_at": {"motor": report["drive"]["motor"],
+                                                           **closed}}
+            tq, closed = other["peak_torque_n_m"], None
+            defl = bent(tq)
+            was = report["drive"]["motor_bends_at"]
+            report["warnings"].append(
+                f"the motor is on joint {other['motor']}: on joint {was['motor']} (the "
+                f"smoothest) its torque would bend links {was['links'][0]} and "
+                f"{was['links'][1]} closer than 3 times their deflections")
+    if closed is not None:
+        report["drive"]["motor_bends"] = closed
+        tq, defl = None, bent(None)
+    why = drive_mass.hand_reason(report["drive"])
+    if why is not None:
+        report["warnings"].append(
+            f"{why}: turn it by hand, holding the base and a link across the loop (the physics "
+            "check does so)" + (", or design a smoother motion (the smooth-drive criterion)"
+                               if closed is None else ""))
     report["stiffness"] = stiffness.to_dict(defl, opts.material.modulus_gpa, tq)
     report["walls"] = thickness.walls({p.name: check.part_trimesh(p.manifold)
                                        for p in asm.parts}, opts.printer.wall_mm)
     if progress is not None:
         progress(1.0, "parts verified")
     return Printed(asm, real, ee, cand.loop, cand.label, b, report)
+
+
+def _motor_keeping_gaps(entry: Callable[[int], dict], worst: np.ndarray, tried: int,
+                        keeps: Callable[[float], bool]) -> dict | None:
+    """The drive entry (``entry(motor)``) of the smoothest motor joint (``worst`` ``(6,)``
+    speed ratio per motor) other than ``tried`` that holds the loop and whose peak torque
+    ``keeps`` the gaps, marked :data:`MOTOR_KEEPS_GAPS`; None where no joint does."""
+    for m in np.argsort(worst, kind="stable"):
+        if int(m) == tried:
+            continue
+        e = entry(int(m))
+        if "error" not in e and not drive_mass.by_hand(e) and keeps(e["peak_torque_n_m"]):
+            return {**e, "motor_chosen": MOTOR_KEEPS_GAPS}
+    return None
 
 
 def _accepted(asm: Assembly, b: base.Base | None, opts: Options) -> bool:

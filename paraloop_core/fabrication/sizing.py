@@ -155,7 +155,8 @@ def at_scale(real, b: Bounds, k: float, printer: Printer, material: Material, ki
     e, rho = material.modulus_gpa, material.density_g_cm3
     margin = GAP_MARGIN if level == 0 else 1.0
     floor = min_radii(b, k, printer, kind, level)
-    if np.any(floor > rcap + 1e-9):
+    if np.any(floor > rcap + 1e-9) or level < 2 and not _floors_fit(b, k, floor, printer,
+                                                                   kind, eps, bmin):
         return None
     if level >= 2:
         top = np.full(6, rcap)
@@ -184,6 +185,20 @@ def at_scale(real, b: Bounds, k: float, printer: Printer, material: Material, ki
         if plan is not None:
             return replace(plan, level=level)
     return None
+
+
+def _floors_fit(b: Bounds, k: float, floor: np.ndarray, printer: Printer, kind: str,
+                eps: float, bmin: float) -> bool:
+    """Whether bars at their ``floor`` radii, the least bosses and gaps meet every row:
+    each deflection bound of :func:`at_scale` asks more (thicker bars, bosses reaching
+    farther, larger gaps), so where this fails their programmes are skipped."""
+    boss = np.maximum(bmin, BOSS_PER_BAR * np.maximum(floor, np.roll(floor, -1)))
+    try:
+        env = envelopes(_layouts(b, k, floor, boss, kind, printer, eps))
+    except FabricationError:
+        return False
+    return radii(b, k, floor, floor, bmin, env,
+                 np.full((6, 6), stiffness.MIN_GAP_MM)) is not None
 
 
 def _settle(real, b: Bounds, k: float, printer: Printer, material: Material, kind: str,
@@ -355,11 +370,19 @@ def _no_room(b: Bounds, printer: Printer, kind: str, size_mm: float | None
         "this realization's certificate leaves between the links", "bad-parameters")
 
 
+def shortfall(plan: Plan) -> np.ndarray:
+    """Each bar's ``(6,)`` larger of :data:`WIDTH_MM` / width and length per width /
+    :data:`LW_MAX` (> 1: short of the floors)."""
+    width = plan.radii * FLATS
+    return np.maximum(WIDTH_MM / width, plan.deflection.lengths / width / LW_MAX)
+
+
 def limiting(plan: Plan, b: Bounds) -> dict:
-    """The certified row that holds the thinnest bar back: among the rows with that bar, the
-    one with the least room left at the plan's radii, bosses, joint reaches and gaps."""
-    env = envelopes(plan.layouts)
-    k, thin = plan.scale, int(np.argmin(plan.radii))
+    """The certified row that holds the weakest bar back (:func:`shortfall`, the thinnest
+    among equals): of its rows, the one with the least room left at the plan's radii,
+    bosses, joint reaches and gaps; and what that bar reaches."""
+    env, k = envelopes(plan.layouts), plan.scale
+    thin = int(np.lexsort((plan.radii, -np.round(shortfall(plan), 9)))[0])
     best = None
     for (e1, e2, la, lb), low in zip(b.rows, b.lower, strict=True):
         if thin * 2 not in (e1, e2):
@@ -379,12 +402,18 @@ def limiting(plan: Plan, b: Bounds) -> dict:
                 best = (room, i, j, k * b.joint_lower[i], i)
     if best is None:
         return {}
+    width = float(plan.radii[thin] * FLATS)
     return {"links": [best[1], best[2]], "thinnest_bar_link": thin,
             "certified_distance_mm": best[3], "room_left_mm": best[0], "joint": best[4],
+            "bar_width_mm": width,
+            "length_per_width": float(plan.deflection.lengths[thin] / width),
             "meaning": "the pair of links whose certified distance over the cycle, less the "
-                       "other's bar or joint and the gap they keep, limits the thinnest bar "
-                       "(joint: the two links' common joint, where their bars pass each other "
-                       "as it turns; null: links without a common joint)"}
+                       "other's bar or joint and the gap they keep, limits the weakest bar "
+                       f"(thinnest_bar_link: the furthest from {WIDTH_MM:g} mm wide and "
+                       f"{LW_MAX:g} times as long as wide; its width and length per width "
+                       "are what this realization reaches; joint: the two links' common "
+                       "joint, where their bars pass each other as it turns; null: links "
+                       "without a common joint)"}
 
 
 def to_dict(plan: Plan, printer: Printer, b: Bounds | None = None) -> dict:

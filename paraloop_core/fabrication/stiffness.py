@@ -101,6 +101,24 @@ def required_gaps(total_mm: np.ndarray) -> np.ndarray:
     return gaps
 
 
+def gap_closed(total_mm: np.ndarray, pairs: list[dict]) -> dict | None:
+    """The pair of links without a common joint whose verified gap over the cycle (a
+    verification's ``pairs``, :func:`check.verify`: ``continuous_min_gap_mm``, the sound
+    bound) is furthest under :func:`required_gaps` of the deflections ``total_mm`` ``(6,)``
+    (JSON-ready: links, their deflections, gap, gap required), or None where every gap
+    keeps them."""
+    need, worst = required_gaps(total_mm), None
+    for p in pairs:
+        a, b = p["links"]
+        short = need[a, b] - p["continuous_min_gap_mm"]
+        if not p["adjacent"] and short > 1e-9 and (worst is None or short > worst[0]):
+            worst = (short, {"links": [a, b], "deflection_mm": [float(total_mm[a]),
+                                                                 float(total_mm[b])],
+                             "gap_mm": p["continuous_min_gap_mm"],
+                             "required_gap_mm": float(need[a, b])})
+    return None if worst is None else worst[1]
+
+
 def rod_deflection(length_mm: float, d_mm: float, modulus_gpa: float, weight_n: float,
                    lever_mm: float) -> float:
     """Sideways deflection (mm) of the grounding rod's top: a cantilever of ``length_mm``
@@ -138,7 +156,8 @@ def to_dict(d: Deflection, modulus_gpa: float, torque_nm: float | None) -> dict:
             "method": "beam estimates: self-weight sag of a simply supported hexagonal bar in "
                       "its most horizontal pose of the cycle, and the motor's peak torque as "
                       "end moments on the bar (mid-span deflection; none where no motor can "
-                      "hold the loop and it is turned by hand); as-printed modulus at the low "
+                      "hold the loop, or its torque would bend two links into the gap they "
+                      "keep, and it is turned by hand); as-printed modulus at the low "
                       "end of the material's range"}
 
 

@@ -288,3 +288,18 @@ def singularity_min(joint_factors: np.ndarray, samples: int = 24, levels: int = 
     per_v[loop, slot], per_u[loop, slot] = best_v, best_u
     k = (np.arange(len(jf)), np.argmin(per_v, axis=1))
     return per_v[k].reshape(batch), poly.param_to_t(per_u[k]).reshape(batch)
+
+
+#: Measures of a loop, relative to the largest of a design's nine, at or below which the loop
+#: is called singular and near-singular (its cycle passes that close to a configuration
+#: where it can switch branches or jam; a printed one with play may do so).
+SINGULAR_RELATIVE, NEAR_RELATIVE = 1e-9, 1e-3
+
+
+def loop_status(measures: np.ndarray) -> list[str]:
+    """``'singular'``, ``'near-singular'`` or ``'ok'`` per loop from the loops' measures
+    ``(9,)`` (:func:`singularity_min`), relative to the largest."""
+    s = np.asarray(measures, float)
+    ref = max(float(s.max()), 1e-300)
+    return ["singular" if v <= SINGULAR_RELATIVE * ref else "near-singular"
+            if v <= NEAR_RELATIVE * ref else "ok" for v in s]

@@ -13,7 +13,8 @@ layout from ``report.json`` (joint axes and hardware, base frame, densities, bed
    over the cycle, nothing below the plate's top; or ``base.mount`` says how it is fixed;
 4. printing (:mod:`printed_layout`): support <= 20 % of the downward area, height <= 3 x the
    contact width, inside the bed;
-5. collisions (:mod:`printed_collide`): parts without a common joint >= 1 mm apart;
+5. collisions (:mod:`printed_collide`): parts without a common joint >= 1 mm apart, and
+   links >= 3 x the sum of their deflections the report predicts;
 6. a link printed in pieces (:mod:`printed_pieces`): the pieces make up the link, each dowel
    engaged >= 1.5 x its diameter in both pieces, walls and floors >= the profile wall.
 
@@ -39,6 +40,8 @@ from .printed_stand import check_stand
 #: Least bar width (mm) and largest length / width.
 MIN_WIDTH_MM = 6.0
 MAX_LENGTH_PER_WIDTH = 30.0
+#: Gap two links without a common joint keep per the sum of their predicted deflections.
+GAP_PER_DEFLECTION = 3.0
 #: Stations along each bar (shares of its length).
 STATIONS = np.linspace(0.2, 0.8, 25)
 #: Largest gap (mm) between a joint axis moved by its two links over the cycle: a micrometre,
@@ -127,8 +130,26 @@ def check_export(folder: str | Path, collisions: bool = True) -> dict:
     fails += f
     if collisions:
         figures["collisions"], f = check_collisions(ex, figures["stand"].get("rod"))
-        fails += f
+        fails += f + check_bending(ex.report, figures["collisions"]["pairs"])
     return {"figures": _plain(figures), "failures": fails, "warnings": warns}
+
+
+def check_bending(report: dict, pairs: list[dict]) -> list[str]:
+    """Failures where two links without a common joint come closer over the cycle (the
+    measured ``pairs`` of :func:`check_collisions`) than 3 x the sum of the deflections the
+    report predicts for them (self-weight sag and, where a motor drives it, its torque)."""
+    bend = {s["link"]: s["sag_mm"] + (s["torque_deflection_mm"] or 0.0)
+            for s in report["stiffness"]["links"]}
+    fails = []
+    for r in pairs:
+        a, b = r["parts"]
+        if not (a.startswith("link_") and b.startswith("link_")):
+            continue
+        need = GAP_PER_DEFLECTION * (bend[int(a[5:])] + bend[int(b[5:])])
+        if not r["min_mm"] >= need - RESOLUTION_MM:
+            fails.append(f"bending: {a} and {b} come {r['min_mm']:.2f} mm apart, under "
+                         f"{GAP_PER_DEFLECTION:g} x their predicted deflections ({need:.2f} mm)")
+    return fails
 
 
 def _plain(x):
