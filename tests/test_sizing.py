@@ -306,8 +306,10 @@ def test_choice_names_every_failure_and_keeps_the_sized():
     with pytest.raises(FabricationError, match="thin: no realization in the budget"):
         choice.choose([bad], opts)
     small = printable.Options(size_mm=60.0)
-    with pytest.raises(FabricationError, match="roomy: at 60 mm"):
+    with pytest.raises(FabricationError, match="roomy: at 60 mm") as err:
         choice.choose([good], small)
+    # every joint kind of auto was tried: the refusal names them all, not the first
+    assert "hardware (m3 or m2)" in str(err.value) and profiles.AUTO_JOINTS == ("m3", "m2")
 
 
 def test_a_loop_far_from_singular_is_printed_before_a_near_singular_one():
@@ -425,3 +427,42 @@ def test_refusal_says_when_a_larger_print_would_not_help():
     hint = remedy.larger_print([("loop 1", None, None)], printable.Options(), _room_from(3.5))
     assert "A larger print would not help" in hint and "3 times as large" in hint
     assert "--bed" not in hint
+
+
+def test_a_smaller_size_is_tried_where_the_bed_size_has_no_room(monkeypatch):
+    """Built parts that must shrink to fit the bed: where the size they fit at has no room
+    for the joints (the hardware's stock lengths make the room uneven in the size), a little
+    smaller sizes are tried (:data:`printable.SMALLER`); where none has room, the candidate
+    gives way to the next (here the same realization, whose parts fit)."""
+    real, opts = F.real(), printable.Options()
+    plan = choice._plan(real, replace(opts, size_mm=F.SIZE_MM))
+    sizes = []
+
+    def plan_at(*a, size_mm=None, **k):
+        sizes.append(size_mm)
+        if size_mm > 0.95 * F.SIZE_MM:
+            raise sizing.NoRoomError(f"at {size_mm:.0f} mm no room", "bad-parameters")
+        return replace(plan, size_mm=size_mm)
+
+    monkeypatch.setattr(sizing, "plan", plan_at)
+    got = printable._smaller(real, None, plan, opts, F.SIZE_MM)
+    assert got.size_mm == pytest.approx(0.94 * F.SIZE_MM)
+    assert sizes == pytest.approx([F.SIZE_MM, 0.97 * F.SIZE_MM, 0.94 * F.SIZE_MM])
+    with pytest.raises(sizing.NoRoomError):
+        printable._smaller(real, None, plan, opts, 2 * F.SIZE_MM)
+    # in the choice of what to build: the candidate without room is passed over
+    monkeypatch.undo()
+    first = []
+
+    def smaller(*a):
+        first.append(1)
+        raise sizing.NoRoomError("no room at the size its parts fit", "bad-parameters")
+
+    fit = bed.laid_fit_factor
+    monkeypatch.setattr(printable, "_smaller", smaller)
+    monkeypatch.setattr(bed, "laid_fit_factor", lambda ext, pr: fit(ext, pr) * (
+        0.5 if not first else 1e3))
+    cands = [choice.Candidate(f"c{k}", 4, lambda: (real, None)) for k in range(2)]
+    pr = printable.make(cands, printable.Options(samples=8, ground=False))
+    assert pr.candidate == "c1" and any(t.startswith("c0: not built") for t in
+                                        pr.report["choice"]["tried"])

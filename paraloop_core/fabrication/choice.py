@@ -68,7 +68,7 @@ def _plan(real: Realization, opts: Options, size_mm: float | None = None,
     in turn, the first that reaches the best level); ``size_mm`` overrides the options'."""
     kinds = profiles.AUTO_JOINTS if opts.joints == "auto" else (opts.joints,)
     extra = None if ee is None else {3: ee.effector.vertices}
-    best, error = None, None
+    best, errors = None, []
     for kind in kinds:
         try:
             p = sizing.plan(real, opts.printer, opts.material, kind, opts.rod,
@@ -76,14 +76,18 @@ def _plan(real: Realization, opts: Options, size_mm: float | None = None,
                             fit=lambda q: bed.predicted_fit(q, real.points, opts.printer,
                                                              extra), ee=ee)
         except FabricationError as exc:
-            error = error or exc
+            errors.append(exc)
             continue
         if best is None or p.level < best.level:
             best = p
         if best.level <= 1:
             break
     if best is None:
-        raise error
+        if len(errors) > 1 and all(isinstance(e, sizing.NoRoomError) for e in errors):
+            # the first names its hardware: every kind tried had no room, say so
+            raise sizing.NoRoomError(str(errors[0]).replace(
+                f"({kinds[0]})", f"({', '.join(kinds[:-1])} or {kinds[-1]})"), "bad-parameters")
+        raise errors[0]
     return best
 
 

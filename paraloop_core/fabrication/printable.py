@@ -62,6 +62,8 @@ KEEL_ROUNDS = 3
 #: The report's ``drive.motor_chosen`` where the recommended motor's torque would bend two
 #: links into the gap they keep and another joint's does not (:func:`make`).
 MOTOR_KEEPS_GAPS = "keeps the gaps"
+#: Sizes (factors) tried in turn when the built parts must shrink to fit the bed.
+SMALLER = (1.0, 0.97, 0.94, 0.9)
 
 
 @dataclass(frozen=True)
@@ -130,9 +132,22 @@ def _fit_and_build(real: Realization, ee: object | None, plan: sizing.Plan, opts
         grow = float(bed.laid_fit_factor(ext, opts.printer).min())  # on their print flats
         if grow >= 1.0 or opts.size_mm is not None:
             break
-        plan = sizing.plan(real, opts.printer, opts.material, plan.kind, opts.rod,
-                           size_mm=plan.size_mm * min(grow, 0.99), ee=ee)
+        plan = _smaller(real, ee, plan, opts, plan.size_mm * min(grow, 0.99))
     return asm, plan, None if el is None else el.method
+
+
+def _smaller(real: Realization, ee: object | None, plan: sizing.Plan, opts: Options,
+             size_mm: float) -> sizing.Plan:
+    """The plan of ``plan``'s joints at ``size_mm``, or a little smaller where the room
+    there is not enough (the hardware's stock lengths make the room uneven in the size);
+    raises :class:`sizing.NoRoomError` where none of :data:`SMALLER` has room."""
+    for f in SMALLER:
+        try:
+            return sizing.plan(real, opts.printer, opts.material, plan.kind, opts.rod,
+                               size_mm=size_mm * f, ee=ee)
+        except sizing.NoRoomError as exc:
+            error = exc
+    raise error
 
 
 def make(candidates: Iterable[choice.Candidate], opts: Options | None = None,
@@ -160,8 +175,10 @@ def make(candidates: Iterable[choice.Candidate], opts: Options | None = None,
     for cand, real, ee, plan in ranked:
         try:
             asm, plan, ee_method = _fit_and_build(real, ee, plan, opts)
-        except FabricationError as exc:  # a link cut through or pinched: the next one
-            if exc.reason not in ("falls-apart", "not-watertight"):
+        except FabricationError as exc:  # a link cut through or pinched, or no room at the
+            # size its built parts fit the bed: the next one
+            if exc.reason not in ("falls-apart", "not-watertight") and \
+                    not isinstance(exc, sizing.NoRoomError):
                 raise
             tried.append(f"{cand.label}: not built ({exc})")
             error = exc
