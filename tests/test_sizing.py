@@ -466,3 +466,25 @@ def test_a_smaller_size_is_tried_where_the_bed_size_has_no_room(monkeypatch):
     pr = printable.make(cands, printable.Options(samples=8, ground=False))
     assert pr.candidate == "c1" and any(t.startswith("c0: not built") for t in
                                         pr.report["choice"]["tried"])
+
+
+def test_sizes_between_are_tried_where_the_one_the_parts_fit_at_has_no_room(monkeypatch):
+    """The room is uneven in the size (stock hardware): radii at the bed's size (parts 8 %
+    too large) and at 93 - 95 % of it only. The size the parts fit at (92 %) has none; the
+    sizes between it and the bed's are tried before the next smaller one."""
+    real = F.real()
+    b = rows.bounds_of(real)
+    top = bed.bed_scale(b.points, GENERIC) * b.extent
+    tried = []
+
+    def at_scale(real, b, k, *a, **kw):
+        size = k * b.extent
+        tried.append(size / top)
+        return SimpleNamespace(size_mm=size) if size >= top * 0.9999 or \
+            0.93 <= size / top <= 0.95 else None
+
+    monkeypatch.setattr(sizing, "at_scale", at_scale)
+    got = sizing.plan(real, GENERIC, F.PLA, "m3", ROD,
+                      fit=lambda p: 0.92 if p.size_mm > 0.96 * top else 1.0)
+    assert 0.93 <= got.size_mm / top <= 0.95
+    assert min(tried) >= 0.92 * 0.999  # never below the size the parts fit at

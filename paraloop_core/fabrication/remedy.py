@@ -37,7 +37,7 @@ def refusal(tried: Sequence[str], refused: Sequence[Refused], opts: Options,
     had no room), what would work (:func:`larger_print`), then every try: the why and the
     remedy first, where a one-line error shows them."""
     where = f"at {opts.size_mm:.0f} mm" if opts.size_mm is not None else \
-        "at any size the bed allows"
+        "at every size tried that the bed allows"
     n, r = len(tried), len(refused)
     why = f"{r} of {n} tried leave{'s' * (r == 1)} the joints no room {where}" \
         if refused else f"none of the {n} realizations tried was found and sized"

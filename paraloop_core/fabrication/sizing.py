@@ -61,10 +61,11 @@ DEFLECTION_STEPS = (0.1, 0.15, 0.25, 0.4, 0.6, 0.9)
 LEVELS = ("aims", "floors", "least gap", "thin bars")
 #: Smallest size (mm) the search goes down to.
 MIN_SIZE_MM = 100.0
-#: Sizes (mm) tried below the bed's limit, as factors, when the programme is infeasible there.
-SHRINK = 0.9
-#: Shares of the room between a bar's floor and its cap that :func:`_radii_settle` allows,
-#: in turn, when thicker bars' bosses and hardware take the room they were given.
+#: Sizes (mm) tried below the bed's limit, as factors, when the programme is infeasible there;
+#: sizes between one whose parts are too large and a smaller one they may fit at: BETWEEN - 1.
+SHRINK, BETWEEN = 0.9, 4
+#: Shares of the room between a bar's floor and its cap that :func:`_radii_settle` allows in
+#: turn where thicker bars' bosses and hardware take the room they were given.
 CAP_SHARES = (0.5, 0.2, 0.0)
 #: Hex bars per corner radius: across flats (width) and the flat's distance from the axis.
 FLATS = np.sqrt(3.0)
@@ -147,8 +148,8 @@ def at_scale(real, b: Bounds, k: float, printer: Printer, material: Material, ki
     (:data:`DEFLECTION_STEPS`, stiffest first): each bar at least the radius that keeps it
     (:func:`stiffness.radius_for`) under the motor torque of bars up to :data:`THICKER` times
     that radius (their upper bound in the programme), every gap at least
-    ``max(1 mm, 3 x 2 delta)`` (levels 0 and 1; levels 2 and 3 keep the least gap only). The
-    first feasible one is kept."""
+    ``max(1 mm, 3 x 2 delta)`` (levels 0 and 1; 2 and 3 the least gap). The first feasible
+    one is kept."""
     size = k * b.extent
     rcap, bmin = bar_cap(size), min_boss(printer, kind, rod)
     lengths = b.bar_lengths * k
@@ -197,8 +198,7 @@ def _floors_fit(b: Bounds, k: float, floor: np.ndarray, printer: Printer, kind: 
         env = envelopes(_layouts(b, k, floor, boss, kind, printer, eps))
     except FabricationError:
         return False
-    return radii(b, k, floor, floor, bmin, env,
-                 np.full((6, 6), stiffness.MIN_GAP_MM)) is not None
+    return radii(b, k, floor, floor, bmin, env, np.full((6, 6), stiffness.MIN_GAP_MM)) is not None
 
 
 def _settle(real, b: Bounds, k: float, printer: Printer, material: Material, kind: str,
@@ -260,10 +260,9 @@ def _radii_settle(real, b: Bounds, k: float, printer: Printer, material: Materia
                   ) -> Plan | None:
     """Radii for fixed ``gaps``, repeated until the joint layouts they imply (how far the
     bosses and hardware reach past the pins) are those the programme assumed. Thicker bars
-    grow their bosses and with them the hardware's reach, which can take the room the bars
-    were given: then the bars' cap may be lowered towards their floor (``shares`` of the
-    room between them, :data:`CAP_SHARES` in :func:`plan`'s second pass) and the fixed point
-    tried again."""
+    grow their bosses and the hardware's reach, which can take the room the bars were given:
+    then the bars' cap is lowered towards their floor (``shares`` of the room between them,
+    :data:`CAP_SHARES` in :func:`plan`'s second pass) and the fixed point tried again."""
     cap = np.broadcast_to(np.asarray(rcap, float), (6,))
     for share in shares:
         top = rmin + share * np.maximum(cap - rmin, 0.0)
@@ -322,23 +321,24 @@ def plan(real, printer: Printer, material: Material, kind: str, rod: Rod, *,
             if p is not None:
                 return p
             continue
-        k = bed.bed_scale(b.points, printer)
+        k, between = bed.bed_scale(b.points, printer), []
         while k * b.extent >= MIN_SIZE_MM:
             p = at_scale(real, b, k, printer, material, kind, rod, eps, matrix, level, rest,
                          shares)
-            if p is not None:
-                grow = fit(p) if fit is not None else 1.0
-                if grow >= 1.0:
-                    return p
-                k *= max(min(grow, 0.99), 0.5)
-                continue
-            k *= SHRINK
+            grow = 0.0 if p is None else fit(p) if fit is not None else 1.0
+            if grow >= 1.0:
+                return p
+            if p is not None:  # too large: down to where it may fit, else the sizes between
+                # (stock hardware makes the room uneven: 62215 has radii at 412 - 448 mm only)
+                to = k * max(min(grow, 0.99), 0.5)
+                between, k = [to * (k / to) ** (j / BETWEEN) for j in range(1, BETWEEN)], to
+            else:
+                k = between.pop(0) if between else k * SHRINK
     raise _no_room(b, printer, kind, size_mm)
 
 
 def _sizes(b: Bounds, printer: Printer) -> Iterator[float]:
-    """Scales (mm per unit) of the loosest level's scan: the bed's down to :data:`MIN_SIZE_MM`
-    by :data:`SHRINK`."""
+    """Scales (mm per unit): the bed's down to :data:`MIN_SIZE_MM` by :data:`SHRINK`."""
     k = bed.bed_scale(b.points, printer)
     while k * b.extent >= MIN_SIZE_MM:
         yield k
@@ -363,8 +363,8 @@ class NoRoomError(FabricationError):
 def _no_room(b: Bounds, printer: Printer, kind: str, size_mm: float | None
              ) -> NoRoomError:
     where = f"at {size_mm:.0f} mm" if size_mm is not None else \
-        f"at any size from {bed.bed_scale(b.points, printer) * b.extent:.0f} mm down to " \
-        f"{MIN_SIZE_MM:g} mm"
+        f"at every size tried from {bed.bed_scale(b.points, printer) * b.extent:.0f} mm " \
+        f"down to {MIN_SIZE_MM:g} mm ({100 * (1 - SHRINK):.0f} % apart)"
     return NoRoomError(
         f"{where} the joints' bosses and hardware ({kind}) and bars do not fit in the room "
         "this realization's certificate leaves between the links", "bad-parameters")
