@@ -191,3 +191,20 @@ def test_the_motor_moves_to_a_joint_whose_torque_keeps_the_gaps(monkeypatch):
     assert any(f"the motor is on joint {d['motor']}" in w for w in pr.report["warnings"])
     assert printed_mod.drive_of(pr, DriveSettings()).motor == d["motor"]
     assert printed_mod.drive_of(pr, DriveSettings(motor=None)).cycle_time_s == 10.0
+
+
+def test_a_near_singular_loop_is_turned_by_hand():
+    """A printed loop near a singular pose (its candidate says so): no motor (one on a
+    joint can let it switch branches), the loop is turned by hand and the warning says why;
+    a motor the design fixes is kept."""
+    from paraloop_core.fabrication import printable
+
+    cand = choice.Candidate("near loop", 4, lambda: (F.real(), None), near_singular=True)
+    opts = printable.Options(size_mm=F.SIZE_MM, samples=16, ground=False)
+    rep = printable.make([cand], opts).report
+    assert rep["drive"]["near_singular"] and drive_mass.by_hand(rep["drive"])
+    assert rep["stiffness"]["motor_torque_nm"] is None
+    assert any("switch to another branch" in w and "by hand" in w for w in rep["warnings"])
+    assert not any("smooth-drive" in w for w in rep["warnings"])  # a smooth loop
+    fixed = printable.make([cand], opts, DriveSettings(motor=2)).report["drive"]
+    assert "near_singular" not in fixed and fixed["motor"] == 2

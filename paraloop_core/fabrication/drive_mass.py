@@ -81,14 +81,18 @@ def material(density_kg_m3: float) -> str:
 def hand_reason(entry: dict) -> str | None:
     """Why a report's ``drive`` entry (:func:`entry`) has the loop turned by hand, or None
     (a motor drives it): one motor cannot hold the loop (its worst speed ratio past
-    :data:`drive.HOLD_RATIO`), or the motor's peak torque would bend two links without a
-    common joint closer than the gap they keep allows (``motor_bends``, set by the export:
-    :func:`stiffness.gap_closed`)."""
+    :data:`drive.HOLD_RATIO`), the printed loop is near-singular (``near_singular``), or the
+    motor's peak torque would bend two links without a common joint closer than the gap
+    they keep allows (``motor_bends``; both set by the export: :func:`printable.make`)."""
     ratio = entry.get("worst_speed_ratio", 0.0)
-    if ratio > drive.HOLD_RATIO:
+    if too_slow(entry):
         return (f"in part of its turn the motor's joint would move {ratio:.0f} times slower "
                 "than the fastest joint, so no motor holds the loop there (its links swing "
                 "under gravity)")
+    if entry.get("near_singular"):
+        return ("the printed loop passes close to a singular configuration, where a motor on "
+                "one joint can let it switch to another branch of its motion (MuJoCo: random "
+                "design 62232's loop 8 did)")
     bent = entry.get("motor_bends")
     if bent:
         (a, b), (da, db) = bent["links"], bent["deflection_mm"]
@@ -97,6 +101,12 @@ def hand_reason(entry: dict) -> str | None:
                 f"and the {bent['gap_mm']:.1f} mm they keep apart over the cycle is less than "
                 f"the {bent['required_gap_mm']:.0f} mm (3 x that) that would keep them apart")
     return None
+
+
+def too_slow(entry: dict) -> bool:
+    """Whether the motor's joint of a ``drive`` entry nearly stops in part of the turn (its
+    worst speed ratio past :data:`drive.HOLD_RATIO`): no motor holds the loop there."""
+    return entry.get("worst_speed_ratio", 0.0) > drive.HOLD_RATIO
 
 
 def by_hand(entry: dict) -> bool:

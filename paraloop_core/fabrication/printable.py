@@ -224,8 +224,8 @@ def make(candidates: Iterable[choice.Candidate], opts: Options | None = None,
     if cand.near_singular:
         warnings.append(f"loop {cand.loop}'s cycle passes close to a singular configuration "
                         "(no realization of a loop farther from one was sized): turn it slowly "
-                        "near its tightest pose, where a loop with play can switch to another "
-                        "branch of its motion or jam")
+                        "by hand near its tightest pose, where a loop with play can switch to "
+                        "another branch of its motion or jam")
     report = {
         "choice": {"realization": cand.label, "loop": cand.loop, "tried": tried,
                    "radius": real.radius, "separation": real.separation},
@@ -248,6 +248,8 @@ def make(candidates: Iterable[choice.Candidate], opts: Options | None = None,
     up = b.up if b is not None else np.array([0.0, 0.0, 1.0])
     report["drive"] = drive_mass.entry(asm.joint_factors, asm.scale, masses, centers, resting,
                                        drive, opts.material, up)
+    if cand.near_singular and (drive is None or drive.motor is None):
+        report["drive"]["near_singular"] = True  # a motor may switch its branch: by hand
     # turned by hand, no motor bends a bar: self-weight only (a motor's torque there, 1e3 -
     # 1e8 times a smooth loop's, would read as metres of bending)
     tq = None if drive_mass.by_hand(report["drive"]) else \
@@ -289,7 +291,7 @@ def make(candidates: Iterable[choice.Candidate], opts: Options | None = None,
         report["warnings"].append(
             f"{why}: turn it by hand, holding the base and a link across the loop (the physics "
             "check does so)" + (", or design a smoother motion (the smooth-drive criterion)"
-                               if closed is None else ""))
+                               if drive_mass.too_slow(report["drive"]) else ""))
     report["stiffness"] = stiffness.to_dict(defl, opts.material.modulus_gpa, tq)
     report["walls"] = thickness.walls({p.name: check.part_trimesh(p.manifold)
                                        for p in asm.parts}, opts.printer.wall_mm)
