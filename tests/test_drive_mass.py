@@ -206,5 +206,7 @@ def test_a_near_singular_loop_is_turned_by_hand():
     assert rep["stiffness"]["motor_torque_nm"] is None
     assert any("switch to another branch" in w and "by hand" in w for w in rep["warnings"])
     assert not any("smooth-drive" in w for w in rep["warnings"])  # a smooth loop
-    fixed = printable.make([cand], opts, DriveSettings(motor=2)).report["drive"]
-    assert "near_singular" not in fixed and fixed["motor"] == 2
+    assert sum("singular configuration" in w for w in rep["warnings"]) == 1
+    fixed = printable.make([cand], opts, DriveSettings(motor=2)).report
+    assert "near_singular" not in fixed["drive"] and fixed["drive"]["motor"] == 2
+    assert any("design's motor on joint 2 can let it switch" in w for w in fixed["warnings"])

@@ -90,9 +90,10 @@ def hand_reason(entry: dict) -> str | None:
                 "than the fastest joint, so no motor holds the loop there (its links swing "
                 "under gravity)")
     if entry.get("near_singular"):
-        return ("the printed loop passes close to a singular configuration, where a motor on "
-                "one joint can let it switch to another branch of its motion (MuJoCo: random "
-                "design 62232's loop 8 did)")
+        return ("the printed loop passes close to a singular configuration (no realization "
+                "of a loop farther from one was sized), where a motor on one joint can let it "
+                "switch to another branch of its motion (MuJoCo: random design 62232's loop 8 "
+                "did)")
     bent = entry.get("motor_bends")
     if bent:
         (a, b), (da, db) = bent["links"], bent["deflection_mm"]

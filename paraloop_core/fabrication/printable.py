@@ -221,11 +221,11 @@ def make(candidates: Iterable[choice.Candidate], opts: Options | None = None,
     if choice.cut(asm.joints):
         warnings.append(f"{_cut_words(asm.joints)}: a crescent is left of it there (no "
                         "realization tried avoids this)")
-    if cand.near_singular:
+    if cand.near_singular and drive is not None and drive.motor is not None:
         warnings.append(f"loop {cand.loop}'s cycle passes close to a singular configuration "
-                        "(no realization of a loop farther from one was sized): turn it slowly "
-                        "by hand near its tightest pose, where a loop with play can switch to "
-                        "another branch of its motion or jam")
+                        "(no realization of a loop farther from one was sized): there the "
+                        f"design's motor on joint {drive.motor} can let it switch to another "
+                        "branch of its motion or jam; turn it slowly near its tightest pose")
     report = {
         "choice": {"realization": cand.label, "loop": cand.loop, "tried": tried,
                    "radius": real.radius, "separation": real.separation},
