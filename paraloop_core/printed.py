@@ -28,6 +28,7 @@ from paraloop_core.fabrication import animate, bed, check, drive_mass, guide, pr
 from paraloop_core.fabrication import export as export_files
 from paraloop_core.fabrication.choice import Candidate
 from paraloop_core.fabrication.printable import Options, Printed
+from paraloop_core.fabrication.progress import Progress
 from paraloop_core.fabrication.step_job import StepJob
 from paraloop_core.linkage import drive_plan, singularity
 from paraloop_core.pipeline import Solution
@@ -48,7 +49,6 @@ ROOMY_PIN = 0.06
 #: Work budget of each candidate search (:meth:`realize.Search.work`; about 0.3 ms a unit):
 #: more for the design's own loop, the one worth printing.
 WORK, WORK_OWN = 10_000, 25_000
-Progress = Callable[[float, str], None]
 
 
 def expected_size(sol: Solution, printer: printable.Printer) -> tuple[float, float, float]:
@@ -122,11 +122,11 @@ def _draws(sol: Solution, loop: int) -> roomy.Draws:
     return roomy.draw(jf, dict(sol.design.realization.fixed), in_unit)
 
 
-def _roomy_candidates(sol: Solution, made: list[Solution]) -> Iterator[Candidate]:
+def _roomy_candidates(sol: Solution, made: list[Solution], near: list[bool]
+                      ) -> Iterator[Candidate]:
     """Roomy realizations (:mod:`roomy`) of every loop, the most promising loop first (the
-    near-singular ones last)."""
+    near-singular ones, ``near`` per loop, last)."""
     draws = {i: _draws(sol, i) for i in range(len(sol.loops))}
-    near = _near_singular(sol)
     for loop in sorted(draws, key=lambda i: (near[i], -draws[i].promise)):
         def run(loop=loop) -> tuple:
             s = roomy_variant(sol, loop, ROOMY_PIN, draws[loop])
@@ -166,7 +166,7 @@ def candidates(sol: Solution, printer: printable.Printer, made: list[Solution]
         # (the second repeats its search with thinner bars: rarely found, costly when not)
         if roomy_left and (n == FIRST_OWN or n == 1 and len(made) == start):
             roomy_left = False
-            yield from _roomy_candidates(sol, made)
+            yield from _roomy_candidates(sol, made, near)
         d_fraction = pin * ext / length
 
         def run(loop=loop, d_fraction=d_fraction, rf=rf) -> tuple:

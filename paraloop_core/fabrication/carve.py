@@ -9,17 +9,16 @@ swept differences, each a removal by :mod:`sweep`.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from paraloop_core.errors import FabricationError
+from paraloop_core.fabrication.progress import Progress
 from paraloop_core.fabrication.sweep import solid_jobs, splat_remove, sweep_jobs
 from paraloop_core.fabrication.voxelspace import VoxelSpace, check_points, point_segment_distance
 from paraloop_core.linkage import loops
-
-Progress = Callable[[float, str], None]
 
 
 @dataclass(frozen=True)

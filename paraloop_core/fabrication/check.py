@@ -38,11 +38,11 @@ from paraloop_core.errors import FabricationError
 from paraloop_core.fabrication import keel, parts
 from paraloop_core.fabrication.assembly import Assembly
 from paraloop_core.fabrication.parts import part_trimesh
+from paraloop_core.fabrication.progress import Progress
 from paraloop_core.linkage import loops
 from paraloop_core.realization.clearance import segment_distance
 from paraloop_core.realization.motion_bound import sound_displacement_bounds, try_motion_bound
 
-Progress = Callable[[float, str], None]
 #: Exact (manifold3d) gap checks one pair may spend refining between samples, and the rounds
 #: of refinement.
 MAX_EXACT_CHECKS = 3000

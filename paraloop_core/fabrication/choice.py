@@ -18,10 +18,9 @@ from dataclasses import dataclass
 from paraloop_core.errors import FabricationError, RealizationError
 from paraloop_core.fabrication import bed, flat, joints, profiles, remedy, rows, sizing
 from paraloop_core.fabrication.profiles import Options
+from paraloop_core.fabrication.progress import Progress
 from paraloop_core.linkage import loops
 from paraloop_core.realization.certified import Realization
-
-Progress = Callable[[float, str], None]
 
 #: Most candidate realizations sized before the best so far is taken.
 MAX_CANDIDATES = 16

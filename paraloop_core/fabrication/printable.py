@@ -51,8 +51,8 @@ from paraloop_core.fabrication import (
     thickness,
 )
 from paraloop_core.fabrication.assembly import Assembly
-from paraloop_core.fabrication.choice import Progress
 from paraloop_core.fabrication.profiles import Options
+from paraloop_core.fabrication.progress import Progress
 from paraloop_core.linkage.drive import peak_speed_ratios
 from paraloop_core.realization.certified import Realization
 

@@ -8,19 +8,19 @@ with joint zones kept clear for the joint hardware, and meshed (:mod:`meshing`).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from paraloop_core.errors import FabricationError
 from paraloop_core.fabrication import carve, endlink, meshing, voxelspace
+from paraloop_core.fabrication.progress import Progress
 
 if TYPE_CHECKING:
     from paraloop_core.realization.ee_certificate import EndEffectorRealization
     from paraloop_core.realization.endeffector import EndEffector
 
-Progress = Callable[[float, str], None]
 #: Joint zone kept clear, as a multiple of the realization's bar radius (design units): room
 #: for the bosses of the printed joint.
 JOINT_ZONE = 3.0
