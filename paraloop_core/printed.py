@@ -122,11 +122,11 @@ def _draws(sol: Solution, loop: int) -> roomy.Draws:
     return roomy.draw(jf, dict(sol.design.realization.fixed), in_unit)
 
 
-def _roomy_candidates(sol: Solution, made: list[Solution], near: list[bool]
-                      ) -> Iterator[Candidate]:
+def _roomy_candidates(sol: Solution, made: list[Solution]) -> Iterator[Candidate]:
     """Roomy realizations (:mod:`roomy`) of every loop, the most promising loop first (the
-    near-singular ones, ``near`` per loop, last)."""
+    near-singular ones last)."""
     draws = {i: _draws(sol, i) for i in range(len(sol.loops))}
+    near = _near_singular(sol)
     for loop in sorted(draws, key=lambda i: (near[i], -draws[i].promise)):
         def run(loop=loop) -> tuple:
             s = roomy_variant(sol, loop, ROOMY_PIN, draws[loop])
@@ -166,7 +166,7 @@ def candidates(sol: Solution, printer: printable.Printer, made: list[Solution]
         # (the second repeats its search with thinner bars: rarely found, costly when not)
         if roomy_left and (n == FIRST_OWN or n == 1 and len(made) == start):
             roomy_left = False
-            yield from _roomy_candidates(sol, made, near)
+            yield from _roomy_candidates(sol, made)
         d_fraction = pin * ext / length
 
         def run(loop=loop, d_fraction=d_fraction, rf=rf) -> tuple:
