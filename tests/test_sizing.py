@@ -429,6 +429,27 @@ def test_refusal_says_when_a_larger_print_would_not_help():
     assert "--bed" not in hint
 
 
+def test_refusal_of_chosen_joints_names_the_default_joints_where_they_fit():
+    """A maker who chose printed pins (or M4) and is refused for room is told when the
+    default joints (M3 screws) have room on the same bed, before any larger bed."""
+    def size(real, opts, ee):
+        if opts.joints != "auto":
+            raise sizing.NoRoomError("no room", "bad-parameters")
+        return SimpleNamespace(kind="m3", size_mm=231.0)
+
+    refused = [("loop 2", None, None)]
+    hint = remedy.other_joints(refused, printable.Options(joints="printed-pin"), size)
+    assert "--joints auto: M3 screws and lock nuts instead of printed pins and caps" in hint
+    assert "loop 2 has room for them at 231 mm" in hint
+    message = remedy.refusal(["loop 2: no room"], refused,
+                             printable.Options(joints="printed-pin"), size)
+    assert message.index("--joints auto") < message.index("Tried:")
+    # the default joints already tried, or without room either: nothing said
+    assert remedy.other_joints(refused, printable.Options(), size) == ""
+    assert remedy.other_joints(refused, printable.Options(joints="m4"),
+                               _room_from(1.4)) == ""
+
+
 def test_a_smaller_size_is_tried_where_the_bed_size_has_no_room(monkeypatch):
     """Built parts that must shrink to fit the bed: where the size they fit at has no room
     for the joints (the hardware's stock lengths make the room uneven in the size), a little

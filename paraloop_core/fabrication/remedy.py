@@ -1,4 +1,5 @@
-"""What would work when no realization of a design prints: a larger print, or none.
+"""What would work when no realization of a design prints: other joints, a larger print, or
+none.
 
 The joints' hardware (screw, nut, dowel) keeps its size while the room between the links grows
 with the print. A realization refused for room (:class:`sizing.NoRoomError`: at every size the
@@ -6,8 +7,12 @@ bed allows, its bosses and hardware do not fit where the certificate keeps the l
 may have it in a larger print. :func:`larger_print` sizes those realizations again, on beds
 up to :data:`FACTORS` times the printer's (or at that many times the size the maker fixed),
 and names the smallest that gives one of them room; or says that none does, so that a larger
-print would not help. The sizing predicts the parts from the certified rows (joints, bosses,
-bars); the export on that bed builds and verifies them as always.
+print would not help. Where the maker chose the joints (``--joints printed-pin`` or ``m4``,
+whose heads, caps and nuts reach farther past the bosses), :func:`other_joints` first sizes
+them with the default joints (:data:`profiles.AUTO_JOINTS`) on the same print and names
+those where they have room: the maker keeps the bed. The sizing predicts the parts from the
+certified rows (joints, bosses, bars); the export on that bed builds and verifies them as
+always.
 """
 
 from __future__ import annotations
@@ -15,6 +20,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import replace
+from typing import Any
 
 from paraloop_core.errors import FabricationError
 from paraloop_core.fabrication.profiles import Options
@@ -44,7 +50,31 @@ def refusal(tried: Sequence[str], refused: Sequence[Refused], opts: Options,
     if refused and r < n:
         why += f", {n - r} were not found or not sized"
     return (f"no realization of this design can be printed with real joints ({why})."
-            f"{larger_print(refused, opts, size)} Tried: " + "; ".join(tried) + ".")
+            f"{other_joints(refused, opts, size)}{larger_print(refused, opts, size)} Tried: "
+            + "; ".join(tried) + ".")
+
+
+def other_joints(refused: Sequence[Refused], opts: Options, size: Sizer) -> str:
+    """The sentence naming the default joints (``--joints auto``) where the maker chose
+    others and a realization of ``refused`` has room with them on the same print; "" when
+    the maker kept the default or they have no room either."""
+    if opts.joints == "auto" or not refused:
+        return ""
+    auto = replace(opts, joints="auto")
+    for label, real, ee in list(refused)[:MAX_TRIED]:
+        try:
+            plan: Any = size(real, auto, ee)
+        except FabricationError:
+            continue
+        return (f" With the default joints (--joints auto: {plan.kind.upper()} screws and "
+                f"lock nuts instead of {_JOINT_WORDS.get(opts.joints, opts.joints)}) it prints "
+                f"on this bed: {label} has room for them at {plan.size_mm:.0f} mm.")
+    return ""
+
+
+#: The maker's joints in words (:func:`other_joints`).
+_JOINT_WORDS = {"printed-pin": "printed pins and caps", "m2": "M2 screws",
+                "m3": "M3 screws", "m4": "M4 screws"}
 
 
 def larger_print(refused: Sequence[Refused], opts: Options, size: Sizer) -> str:
