@@ -206,6 +206,35 @@ def test_a_design_refused_for_room_names_a_bed_on_which_it_prints(tmp_path):
     assert not found["failures"] or report["sizing"]["limiting_pair"]
 
 
+def test_slender_bars_name_a_bed_that_brings_them_within_the_floors(tmp_path):
+    """Random 62238 prints on the generic bed with bars thinner than the floors (the
+    certificate's room at the size the bed allows); the warning and ``sizing.larger_print``
+    name the smallest larger bed on which a realization has bars within them
+    (:func:`remedy.stronger_print`), and the export on that bed has them: the independent
+    checker finds no failure, the bars as wide as the report predicted."""
+    from independent.generic_designs import random_design
+
+    design = tmp_path / "random-62238.json"
+    design.write_text(json.dumps(random_design(62238)))
+
+    def export(out: str, *extra: str) -> dict:
+        run = subprocess.run([sys.executable, "-m", "app.cli.main", "export", str(design),
+                              "--out", str(tmp_path / out), "--quiet", *extra],
+                             cwd=ROOT, capture_output=True, text=True, timeout=900)
+        assert run.returncode == 0, run.stderr[-400:]
+        return json.loads((tmp_path / out / "report.json").read_text())
+
+    slender = export("here")
+    larger = slender["sizing"]["larger_print"]
+    assert larger["bed_mm"][0] > 250 and larger["length_per_width"] <= 28.0 + 1e-9
+    bed = ",".join(f"{v:.0f}" for v in larger["bed_mm"])
+    assert any(f"--bed {bed}" in w for w in slender["warnings"]), slender["warnings"]
+    export("there", "--bed", bed)
+    found = pc.check_export(tmp_path / "there")
+    assert not found["failures"], found["failures"]
+    assert pc.summary(found)["min_bar_width_mm"] >= 0.95 * larger["bar_width_mm"]
+
+
 # --- a good export damaged: each damage is reported --------------------------------------------
 
 @pytest.fixture

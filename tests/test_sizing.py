@@ -300,7 +300,7 @@ def test_choice_names_every_failure_and_keeps_the_sized():
     good = choice.Candidate("roomy", 4, lambda: (F.real(), None))
     bad = choice.Candidate("thin", 4, refused)
     opts = printable.Options(size_mm=F.SIZE_MM)
-    ranked, tried = choice.choose([bad, good], opts)
+    ranked, tried, _ = choice.choose([bad, good], opts)
     assert [c.label for c, *_ in ranked] == ["roomy"] and tried[0].startswith("thin: no reali")
     assert ranked[0][3].size_mm == pytest.approx(F.SIZE_MM)
     with pytest.raises(FabricationError, match="thin: no realization in the budget"):
@@ -318,9 +318,9 @@ def test_a_loop_far_from_singular_is_printed_before_a_near_singular_one():
     real = F.real()
     near = choice.Candidate("near", 4, lambda: (real, None), near_singular=True)
     cands = [near] + [choice.Candidate(f"ok{k}", 4, lambda: (real, None)) for k in range(3)]
-    ranked, tried = choice.choose(cands, printable.Options())
+    ranked, tried, _ = choice.choose(cands, printable.Options())
     assert ranked[0][3].aims_met and [c.label for c, *_ in ranked] == ["ok0", "ok1", "near"]
-    ranked, _ = choice.choose(cands[::-1], printable.Options())
+    ranked, _, _ = choice.choose(cands[::-1], printable.Options())
     assert [c.label for c, *_ in ranked] == ["ok2", "ok1"]  # enough before the near one
     assert singularity.loop_status(np.array([1.0, 2e-3, 1e-3, 1e-9, 0.0])) == \
         ["ok", "ok", "near-singular", "singular", "singular"]
@@ -334,7 +334,7 @@ def test_more_candidates_are_sized_while_each_would_print_over_supports(lifted, 
     monkeypatch.setattr(choice, "_lifted_by_plan", lambda *a: lifted)
     cands = [choice.Candidate(f"c{k}", 4, lambda: (real, None)) for k in range(10)]
     # a size that meets no aims: the count alone stops the sizing
-    ranked, tried = choice.choose(cands, printable.Options(size_mm=0.6 * F.SIZE_MM))
+    ranked, tried, _ = choice.choose(cands, printable.Options(size_mm=0.6 * F.SIZE_MM))
     assert not any(plan.aims_met for *_, plan in ranked)
     extra = choice.FLAT_SEARCH if lifted else 0
     assert len(ranked) == len(tried) == choice.ENOUGH_SIZED + extra
@@ -448,6 +448,32 @@ def test_refusal_of_chosen_joints_names_the_default_joints_where_they_fit():
     assert remedy.other_joints(refused, printable.Options(), size) == ""
     assert remedy.other_joints(refused, printable.Options(joints="m4"),
                                _room_from(1.4)) == ""
+
+
+def test_thin_bars_name_the_smallest_bed_with_bars_within_the_floors():
+    """:func:`remedy.stronger_print`: the smallest larger bed on which a realization's plan
+    reaches the floors (a level below thin bars), with its bars; else that none does."""
+    def within_from(factor: float):
+        def size(real, opts, ee):
+            grown = opts.printer.bed_mm[0] / printable.Options().printer.bed_mm[0]
+            level = 1 if grown >= factor and real == "good" else 3
+            return SimpleNamespace(level=level, size_mm=250.0 * grown,
+                                   radii=np.full(6, 4.0), deflection=SimpleNamespace(
+                                       lengths=np.full(6, 150.0)))
+        return size
+
+    sized = [("loop 1", "thin", None), ("loop 2", "good", None)]
+    got = remedy.stronger_print(sized, printable.Options(), within_from(1.2))
+    assert got["bed_mm"] == [313.0, 263.0, 263.0] and got["realization"] == "loop 2"
+    assert got["bar_width_mm"] == pytest.approx(4.0 * sizing.FLATS)
+    assert "--bed 313,263,263), where loop 2 has bars 6.9 mm wide" in got["sentence"]
+    assert remedy.stronger_print(sized, printable.Options(), within_from(1.4))["bed_mm"] == \
+        [375.0, 315.0, 315.0]
+    none = remedy.stronger_print(sized, printable.Options(), within_from(2.0))
+    assert none["bed_mm"] is None and "a design whose links pass farther apart" in \
+        none["sentence"]
+    assert remedy.stronger_print(sized, printable.Options(size_mm=200.0),
+                                 within_from(1.2)) == {}
 
 
 def test_a_smaller_size_is_tried_where_the_bed_size_has_no_room(monkeypatch):

@@ -92,8 +92,9 @@ def _plan(real: Realization, opts: Options, size_mm: float | None = None,
 
 def choose(candidates: Iterable[Candidate], opts: Options, progress: Progress | None = None
            ) -> tuple[list[tuple[Candidate, Realization, object | None, sizing.Plan]],
-                      list[str]]:
-    """The sized candidates, best first (module docstring), and what was tried. Raises
+                      list[str], list[remedy.Refused]]:
+    """The sized candidates, best first (module docstring), what was tried and the
+    realizations made but without room at this bed (:data:`remedy.Refused`). Raises
     :class:`FabricationError` naming every failure when none can be sized (with what would
     work: :func:`remedy.refusal`), and for joints printed in place on a loop whose axes do
     not allow it (:func:`joints.in_place_refusal`)."""
@@ -130,10 +131,14 @@ def choose(candidates: Iterable[Candidate], opts: Options, progress: Progress | 
             break
     if not sized:
         # the hardware is the same at every size, the room between the links grows with it
-        raise FabricationError(remedy.refusal(tried, roomless, opts,
-                                              lambda r, o, e: _plan(r, o, ee=e)),
+        raise FabricationError(remedy.refusal(tried, roomless, opts, plan_of),
                                "bad-parameters")
-    return sorted(sized, key=lambda c: _score(c[0], c[3]), reverse=True), tried
+    return sorted(sized, key=lambda c: _score(c[0], c[3]), reverse=True), tried, roomless
+
+
+def plan_of(real: Realization, opts: Options, ee: object | None) -> sizing.Plan:
+    """:func:`_plan` as :data:`remedy.Sizer` (the remedies size realizations again)."""
+    return _plan(real, opts, ee=ee)
 
 
 def _lifted_by_plan(real: Realization, plan: sizing.Plan, opts: Options) -> bool:

@@ -44,6 +44,7 @@ from paraloop_core.fabrication import (
     keel,
     layout,
     parts,
+    remedy,
     rows,
     sizing,
     stand,
@@ -158,7 +159,7 @@ def make(candidates: Iterable[choice.Candidate], opts: Options | None = None,
     that verification takes a keel off (those parts are not the ones kept), and again with
     the final parts."""
     opts = opts or Options()
-    ranked, tried = choice.choose(candidates, opts, stage(progress, 0.0, 0.25))
+    ranked, tried, roomless = choice.choose(candidates, opts, stage(progress, 0.0, 0.25))
     if progress is not None:
         progress(0.25, "building the parts")
     # the best candidate that builds and stands on its base, no bar cut and its links
@@ -226,12 +227,21 @@ def make(candidates: Iterable[choice.Candidate], opts: Options | None = None,
                         "(no realization of a loop farther from one was sized): there the "
                         f"design's motor on joint {drive.motor} can let it switch to another "
                         "branch of its motion or jam; turn it slowly near its tightest pose")
+    sized = sizing.to_dict(plan, opts.printer, rows.bounds_of(real))
+    level = sizing.level_warnings(plan)
+    if plan.level >= sizing.LEVELS.index("thin bars"):
+        # thinner than the floors: whether a larger bed brings them within (the printed
+        # realization first, then those the others sized, then those without room here)
+        others = [(c.label, r, e) for c, r, e, _ in ranked if c is not cand]
+        sized["larger_print"] = remedy.stronger_print(
+            [(cand.label, real, ee), *others, *roomless], opts, choice.plan_of)
+        level = [f"{level[0]}; {sized['larger_print']['sentence']}"]
     report = {
         "choice": {"realization": cand.label, "loop": cand.loop, "tried": tried,
                    "radius": real.radius, "separation": real.separation},
-        "sizing": sizing.to_dict(plan, opts.printer, rows.bounds_of(real)),
+        "sizing": sized,
         "joints": [joints.to_dict(j) for j in asm.joints],
-        "verification": ver, "warnings": warnings + sizing.level_warnings(plan),
+        "verification": ver, "warnings": warnings + level,
         "print_flat_slack_mm": asm.slack.tolist(),
         "keels_mm": [p.keel_mm for p in asm.links]}
     # how the loop is held where no base stands on its own (None: it stands)

@@ -24,6 +24,7 @@ from typing import Any
 
 from paraloop_core.errors import FabricationError
 from paraloop_core.fabrication.profiles import Options
+from paraloop_core.fabrication.sizing import FLATS, LEVELS
 from paraloop_core.realization.certified import Realization
 
 #: Multiples of the printer's bed (or of the maker's size) tried, smallest first.
@@ -100,6 +101,52 @@ def larger_print(refused: Sequence[Refused], opts: Options, size: Sizer) -> str:
                 return _words(c[0], scaled, size_mm)
     (label, _, _), size_mm = roomy[0]
     return _words(label, _scaled(opts, FACTORS[-1]), size_mm)
+
+
+#: Multiples of the bed tried for bars within the floors (:func:`stronger_print`), and how
+#: many of the realizations sized at the bed are sized again there.
+STRONGER_FACTORS, STRONGER_TRIED = (1.25, 1.5), 4
+
+
+def stronger_print(sized: Sequence[Refused], opts: Options, size: Sizer) -> dict:
+    """Where the printed bars are thinner than the floors (:data:`sizing.LEVELS`' thin bars):
+    the smallest bed of :data:`STRONGER_FACTORS` on which ``size`` gives one of the
+    realizations ``sized`` (the printed one first, then the others sized, then those without
+    room at this bed; the first :data:`STRONGER_TRIED`) bars within the floors, as the
+    report's ``sizing.larger_print`` (``bed_mm``, ``realization``, ``size_mm``,
+    ``bar_width_mm``, ``length_per_width``, ``sentence``); or ``{"bed_mm": None,
+    "sentence": ...}`` saying none reaches it; with a size the maker fixed, ``{}``."""
+    if opts.size_mm is not None or not sized:
+        return {}
+
+    def within(c: Refused, f: float) -> Any:  # the plan on the bed f times this, if within
+        try:
+            plan: Any = size(c[1], _scaled(opts, f), c[2])
+        except FabricationError:
+            return None
+        return plan if plan.level < LEVELS.index("thin bars") else None
+
+    # the largest bed first: the realizations not within the floors even there are left out
+    largest = [(c, within(c, STRONGER_FACTORS[-1])) for c in list(sized)[:STRONGER_TRIED]]
+    largest = [(c, p) for c, p in largest if p is not None]
+    for f in STRONGER_FACTORS:
+        scaled = _scaled(opts, f)
+        for (label, real, ee), top in largest:
+            plan = top if f == STRONGER_FACTORS[-1] else within((label, real, ee), f)
+            if plan is None:
+                continue
+            width = plan.radii * FLATS
+            lw = float(max(plan.deflection.lengths / width))
+            x, y, z = scaled.printer.bed_mm
+            return {"bed_mm": [x, y, z], "realization": label, "size_mm": plan.size_mm,
+                    "bar_width_mm": float(width.min()), "length_per_width": lw,
+                    "sentence": f"what would work: a bed of at least {x:.0f} x {y:.0f} x "
+                                f"{z:.0f} mm (--bed {x:.0f},{y:.0f},{z:.0f}), where {label} has "
+                                f"bars {width.min():.1f} mm wide or more and at most {lw:.0f} "
+                                f"times as long as wide at {plan.size_mm:.0f} mm"}
+    return {"bed_mm": None, "sentence": f"no bed up to {STRONGER_FACTORS[-1]:g} times this "
+            "one gives the realizations tried bars within those; what would work: a design "
+            "whose links pass farther apart (other poses, family or mu)"}
 
 
 def _words(label: str, scaled: Options, size_mm: float) -> str:
