@@ -117,24 +117,38 @@ def roomy_variant(sol: Solution, loop: int, pin: float,
                        "status": "found", "attempts": [], "fallback": None})
 
 
-def _draws(sol: Solution, loop: int) -> roomy.Draws:
+def _draws(sol: Solution, loop: int, close: bool = False) -> roomy.Draws:
+    """:func:`roomy.draw` of ``loop``; ``close``: round the collision-free polyline the
+    design realized (its shifts, steps of ``l / p``, as steps of ``l / FINE_P``)."""
     jf, in_unit = sol.search_factors(loop)
-    return roomy.draw(jf, dict(sol.design.realization.fixed), in_unit)
+    center = None
+    if close:
+        center = np.rint(np.asarray(sol.realization.shifts, float) * roomy.FINE_P
+                         / sol.design.realization.p).astype(int)
+    return roomy.draw(jf, dict(sol.design.realization.fixed), in_unit, center=center)
 
 
 def _roomy_candidates(sol: Solution, made: list[Solution]) -> Iterator[Candidate]:
     """Roomy realizations (:mod:`roomy`) of every loop, the most promising loop first (the
-    near-singular ones last)."""
+    near-singular ones last); then the design's loop drawn round its own polyline (last: it
+    adds a chance where the others found too little, and takes none of their turns)."""
     draws = {i: _draws(sol, i) for i in range(len(sol.loops))}
     near = _near_singular(sol)
-    for loop in sorted(draws, key=lambda i: (near[i], -draws[i].promise)):
-        def run(loop=loop) -> tuple:
-            s = roomy_variant(sol, loop, ROOMY_PIN, draws[loop])
+
+    def candidate(loop: int, what: str, get: Callable[[], roomy.Draws]) -> Candidate:
+        def run() -> tuple:
+            s = roomy_variant(sol, loop, ROOMY_PIN, get())
             made.append(s)
             return s.realization, None
 
-        yield Candidate(f"loop {loop}, roomy polyline, offset d = {ROOMY_PIN:g} of its extent",
-                        loop, run, near[loop])
+        return Candidate(f"loop {loop}, roomy polyline{what}, offset d = {ROOMY_PIN:g} of its "
+                         "extent", loop, run, near[loop])
+
+    for loop in sorted(draws, key=lambda i: (near[i], -draws[i].promise)):
+        yield candidate(loop, "", lambda loop=loop: draws[loop])
+    if sol.realization is not None:
+        mine = sol.design.loop
+        yield candidate(mine, " near the design's", lambda: _draws(sol, mine, close=True))
 
 
 def _near_singular(sol: Solution) -> list[bool]:

@@ -50,6 +50,26 @@ def test_screen_orders_by_exact_clearance_below_the_samples(close_design):
     assert np.allclose(np.minimum(exact, joints) / extent, score, rtol=1e-9, atol=1e-12)
 
 
+def test_draws_round_the_design_polyline_find_room_the_wide_draws_miss():
+    """Random 62219: on the loop the design realized, none of the wide draws the screen
+    checks is collision-free; drawn close round the design's own free polyline, some are,
+    and the export tries them after the wide draws of every loop."""
+    sol = pl.solve(pl.design_from_dict(random_design(62219, 1.0)))
+    loop, p = sol.design.loop, sol.design.realization.p
+    assert len(roomy.screen(printed._draws(sol, loop), ROOMY_PIN)[0]) == 0
+    close = printed._draws(sol, loop, close=True)
+    center = np.rint(np.asarray(sol.realization.shifts) * roomy.FINE_P / p).astype(int)
+    assert len(close.tau) == roomy.LOCAL_DRAWS * len(roomy.LOCAL_SCALES)
+    assert np.all(np.abs(close.tau - center) <= max(roomy.LOCAL_SCALES) * roomy.FINE_P + 0.5)
+    index, score, thin = roomy.screen(close, ROOMY_PIN)
+    assert len(index) > 0 and np.all(score > 0)
+    exact = roomy.exact_clearance(close.lp, close.polys[index]) / close.extent[index]
+    assert np.allclose(exact, thin, rtol=1e-9)
+    labels = [c.label for c in printed._roomy_candidates(sol, [])]
+    assert len(labels) == len(sol.loops) + 1 and "near the design's" in labels[-1]
+    assert labels[-1].startswith(f"loop {loop},")
+
+
 def _joint_clearance_dense(u, v, pin, turns=720):
     """The two bars at each joint of one thin polyline ``v`` ``(6, 3)`` split by ``pin`` (the
     bar leaning further along the axis at its upper end), the second turned about the axis

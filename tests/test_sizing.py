@@ -515,6 +515,27 @@ def test_a_smaller_size_is_tried_where_the_bed_size_has_no_room(monkeypatch):
                                         pr.report["choice"]["tried"])
 
 
+def test_a_candidate_whose_parts_shrink_below_the_floors_gives_way(monkeypatch):
+    """Built parts that fit the bed only at a smaller size than sized, where the bars fall
+    below the floors (the sizing's thin-bar level): the next candidate is built too and
+    taken where its bars keep the floors; the report says why (random 62203 printed bars
+    37 times as long as wide so, where the next candidate had 7.8 mm bars)."""
+    real, build, calls = F.real(), printable._fit_and_build, []
+
+    def fit_and_build(real, ee, plan, opts, *a):
+        asm, plan, method = build(real, ee, plan, opts, *a)
+        calls.append(plan.level)
+        shrunk = len(calls) == 1
+        return asm, replace(plan, level=3) if shrunk else plan, method
+
+    monkeypatch.setattr(printable, "_fit_and_build", fit_and_build)
+    cands = [choice.Candidate(f"c{k}", 4, lambda: (real, None)) for k in range(2)]
+    pr = printable.make(cands, printable.Options(samples=8, ground=False))
+    assert len(calls) == 2 and max(calls) < 3 and pr.candidate == "c1"
+    assert any(t.startswith("c0: its parts fit the bed only at") and "thinner than the floors"
+               in t for t in pr.report["choice"]["tried"])
+
+
 def test_sizes_between_are_tried_where_the_one_the_parts_fit_at_has_no_room(monkeypatch):
     """The room is uneven in the size (stock hardware): radii at the bed's size (parts 8 %
     too large) and at 93 - 95 % of it only. The size the parts fit at (92 %) has none; the

@@ -173,7 +173,9 @@ def make(candidates: Iterable[choice.Candidate], opts: Options | None = None,
             handed.append(asm)
             on_parts(asm)
 
+    thin = sizing.LEVELS.index("thin bars")
     for cand, real, ee, plan in ranked:
+        sized_level = plan.level
         try:
             asm, plan, ee_method = _fit_and_build(real, ee, plan, opts)
         except FabricationError as exc:  # a link cut through or pinched, or no room at the
@@ -186,15 +188,21 @@ def make(candidates: Iterable[choice.Candidate], opts: Options | None = None,
             continue
         asm, b, warnings = _grounded(asm, opts, progress, cand.label)
         x = _Built(cand, real, ee, plan, asm, ee_method, b, warnings)
-        if _keeled(asm) and _accepted(asm, b, opts):
+        # built parts that fit the bed only smaller than sized, where the bars fall below
+        # the floors: the next candidate sized within them is built too (_built_score)
+        shrunk = plan.level >= thin > sized_level
+        if _keeled(asm) and _accepted(asm, b, opts) and not shrunk:
             # its keels verified before it is taken: one taken off leaves its link over
             # supports, and the next candidate may lie flat
             hand(asm)
             x = _settled(x, opts, progress, tried, lambda: hand(None))
             asm, b = x.asm, x.base
         built.append(x)
-        if _accepted(asm, b, opts):
+        if _accepted(asm, b, opts) and not shrunk:
             break
+        if shrunk:
+            tried.append(f"{cand.label}: its parts fit the bed only at {plan.size_mm:.0f} mm, "
+                         "where its bars are thinner than the floors")
         lifted = _lifted(asm)
         if b is None and opts.ground:
             tried.append(f"{cand.label}: no grounding rod clears its moving links")
