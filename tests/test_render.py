@@ -285,6 +285,17 @@ def test_exploded_scene_pulls_groups_apart_along_the_axis():
     assert cam.project(w)[0] > cam.project(np.zeros(3))[0]
     assert {lab.text for lab in scene.labels} == {"pin", "bore", "axis of joint 2"}
     assert Image.open(io.BytesIO(scene.png())).size == (400, 300)
+    # groups pulled both ways: one arrow per direction (the farthest group's), on opposite
+    # sides of the axis, each pointing back towards the joint
+    nut = guide_pictures.Piece("nut", rod((1.0, 0, 0), (1.2, 0, 0), 0.2), BLUE)
+    both = guide_pictures.exploded_scene([([pin], -2.0), ([boss], 3.0), ([nut], 1.5)], joint,
+                                         size=(400, 300))
+    arrows = [ln for ln in both.lines if isinstance(ln, Arrow3)]
+    along = [float((np.array(a.head) - a.tail) @ w) for a in arrows]
+    assert len(arrows) == 2 and sorted(np.sign(along)) == [-1.0, 1.0]
+    assert max(abs(x) for x in along) == pytest.approx(0.75 * 3.0)  # the farthest group's
+    across = [np.array(a.tail) - (np.array(a.tail) @ w) * w for a in arrows]
+    assert float(across[0] @ across[1]) < 0  # opposite sides of the axis
 
 
 @pytest.mark.slow

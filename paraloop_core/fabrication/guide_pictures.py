@@ -9,10 +9,11 @@ building parts: :class:`Piece` (a rigid solid with a name and colour, mm) and :c
   world z up) that sees the most joints, then shows every piece best with the joints spread
   apart (room for their labels).
 * :func:`exploded_scene`: one joint pulled apart along its axis: groups of pieces shifted by
-  their own offsets (mm along the axis), the axis dashed, an arrow per moved group back to
-  its place, framed on the joint. The axis is drawn left to right (positive offsets to the
-  right); the eye turns about it (every 45 deg, tilted 15 deg either way along it) to see the
-  pieces flagged ``focus`` (pin, bore) best, preferring views from above.
+  their own offsets (mm along the axis), the axis dashed, an arrow back to their places per
+  direction (the farthest group's), framed on the joint. The axis is drawn left to right
+  (positive offsets to the right); the eye turns about it (every 45 deg, tilted 15 deg either
+  way along it) to see the pieces flagged ``focus`` (pin, bore) best, preferring views from
+  above.
 * :func:`locator_scene`: where one joint is: its two pieces in colour, the rest faint.
 * :func:`assembly_scenes`: the guide's pictures of a printed :class:`assembly.Assembly`.
 """
@@ -194,14 +195,18 @@ def exploded_scene(groups: Sequence[tuple[Sequence[Piece], float]], joint: Joint
                                          JOINT_COLOR, dashed=True, width=2.0)]
     probe = View(size=PROBE, direction=tuple(eye), up=tuple(up), fit=ring, supersample=1)
     who, cam = cover.seen(probe)
-    for off in offsets:
-        if off == 0.0:
-            continue
-        arrows = []
-        for sign in (1.0, -1.0):  # beside the axis, on the side with less in the way
-            base = at + sign * side * 1.8 * joint.radius + (joint.s0 if off > 0 else joint.s1) * w
-            arrows.append(Arrow3(base + off * w, base + 0.25 * off * w, ARROW_COLOR))
-        lines.append(min(arrows, key=lambda a: _covered(who, cam, a)))
+    # one arrow per direction, the farthest group's (the nearer groups' arrows lay on its
+    # shaft, a row of heads that read as a glitch); two directions on opposite sides of the
+    # axis (else one shaft runs through the other's head), the sides with less in the way
+    far = [o for o in (min(min(offsets), 0.0), max(max(offsets), 0.0)) if o != 0.0]
+
+    def arrow(off: float, sign: float) -> Arrow3:
+        base = at + sign * side * 1.8 * joint.radius + (joint.s0 if off > 0 else joint.s1) * w
+        return Arrow3(base + off * w, base + 0.25 * off * w, ARROW_COLOR)
+
+    signs = [(1.0, -1.0), (-1.0, 1.0)] if len(far) == 2 else [(1.0,), (-1.0,)]
+    lines += min(([arrow(off, sg) for off, sg in zip(far, pick, strict=True)] for pick in signs),
+                 key=lambda arrows: sum(_covered(who, cam, a) for a in arrows))
     labels.append(Label(joint.name or f"axis of joint {joint.number}",
                         at + (lo - 0.9 * margin) * w,
                         JOINT_COLOR))
