@@ -267,6 +267,31 @@ def test_loop_scene_names_every_piece_and_joint():
     assert where.view == scene.view
 
 
+def test_a_label_keeps_off_an_arrow():
+    """A label goes where it hides no arrow when there is room elsewhere (without the arrow
+    it takes that place: left of its anchor)."""
+    anchor, size = np.array([[200.0, 150.0]]), np.array([[80.0, 20.0]])
+    free = annotate.place_labels(anchor, size, (400, 300))[0]
+    arrow = np.array([[[free[0] - 10, 152.0], [free[2] + 10, 152.0]]])  # through that place
+    box = annotate.place_labels(anchor, size, (400, 300), arrows=arrow)[0]
+    along = np.linspace(arrow[0, 0], arrow[0, 1], 50)
+    assert not np.any((along[:, 0] > box[0]) & (along[:, 0] < box[2]) &
+                      (along[:, 1] > box[1]) & (along[:, 1] < box[3]))
+
+
+def test_an_upright_exploded_scene_draws_the_axis_top_to_bottom():
+    """The base's picture: the rod's axis vertical, +axis (towards the plate) downwards."""
+    w = np.array([0.0, 0.0, -1.0])
+    joint = guide_pictures.Joint(0, np.zeros(3), w, -2.0, 1.0, 0.2)
+    rod_piece = guide_pictures.Piece("rod", rod((0, 0, 0), (0, 0, -1), 0.05), BLUE, focus=True)
+    scene = guide_pictures.exploded_scene([([rod_piece], -1.0)], joint, upright=True)
+    cam = render.camera(scene.view, np.array([[0.0, 0, 0], [0, 0, -1]]), 1)
+    top, below = cam.project(np.zeros(3)), cam.project(w)
+    assert abs(below[0] - top[0]) < 1e-6 * abs(below[1] - top[1]) and below[1] > top[1]
+    arrow = next(ln for ln in scene.lines if isinstance(ln, Arrow3))
+    assert (np.array(arrow.head) - arrow.tail) @ w > 0  # the rod goes down into its place
+
+
 def test_exploded_scene_pulls_groups_apart_along_the_axis():
     w = np.array([1.0, 0.0, 0.0])
     joint = guide_pictures.Joint(2, np.zeros(3), w, -0.5, 1.0, 0.4)

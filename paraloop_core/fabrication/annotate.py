@@ -5,7 +5,8 @@ candidates on rings around its anchor (and, as a fallback, on a grid over the wh
 Hard rules: the box lies inside the picture (``border`` px from its edge) and keeps ``gap`` px
 from every box placed before.
 Costs (px of leader length): the leader's length, plus :data:`W_CONTENT` times the fraction of
-the box over drawn content, :data:`W_ANCHOR` per anchor it covers, :data:`W_CROSS` per leader
+the box over drawn content, :data:`W_ANCHOR` per anchor it covers and per arrow it touches
+(``arrows``: an arrow under a label hides which way a piece goes), :data:`W_CROSS` per leader
 it crosses or box its leader passes through. Deterministic: ties go to the first candidate.
 
 **Drawing** (Pillow, on the supersampled picture except the label boxes): labels are bold
@@ -52,9 +53,12 @@ def _crosses(a0: np.ndarray, a1: np.ndarray, b0: np.ndarray, b1: np.ndarray) -> 
         (orient(b0, b1, a0) * orient(b0, b1, a1) < 0)
 
 
-def _through(p0: np.ndarray, p1: np.ndarray, box: np.ndarray, samples: int = 12) -> np.ndarray:
-    """Whether segments ``p0 p1`` ``(C, 2)`` pass through ``box`` ``(4,)`` (sampled)."""
-    t = np.linspace(0.08, 0.92, samples)[:, None]
+def _through(p0: np.ndarray, p1: np.ndarray, box: np.ndarray, samples: int = 12,
+             ends: bool = False) -> np.ndarray:
+    """Whether segments ``p0 p1`` ``(C, 2)`` pass through ``box`` ``(4,)`` (sampled; their
+    ends too where ``ends``)."""
+    t = np.linspace(0.0, 1.0, samples)[:, None] if ends else \
+        np.linspace(0.08, 0.92, samples)[:, None]
     x = p0[:, 0] + t * (p1[:, 0] - p0[:, 0])  # (samples, C), per coordinate
     y = p0[:, 1] + t * (p1[:, 1] - p0[:, 1])
     return ((x > box[0]) & (x < box[2]) & (y > box[1]) & (y < box[3])).any(0)
@@ -75,10 +79,12 @@ def _candidates(anchor: np.ndarray, w: float, h: float, size: tuple[int, int]) -
 
 def place_labels(anchors: np.ndarray, sizes: np.ndarray, size: tuple[int, int],
                  occupied: np.ndarray | None = None, gap: float = 6.0,
-                 border: float = 4.0) -> np.ndarray:
+                 border: float = 4.0, arrows: np.ndarray | None = None
+                 ) -> np.ndarray:
     """Boxes ``(n, 4)`` (x0, y0, x1, y1, px, y down) for labels of ``sizes`` ``(n, 2)``
     (width, height) pointing at ``anchors`` ``(n, 2)`` in a picture of ``size`` (width,
-    height) whose drawn pixels are ``occupied`` ``(height, width)`` (module docstring).
+    height) whose drawn pixels are ``occupied`` ``(height, width)``, avoiding ``arrows``
+    ``(m, 2, 2)`` (tail, head, px; module docstring).
     Raises :class:`FabricationError` (``bad-parameters``) when a label has no free place."""
     anchors = np.asarray(anchors, float).reshape(-1, 2)
     sizes = np.asarray(sizes, float).reshape(-1, 2)
@@ -117,6 +123,10 @@ def place_labels(anchors: np.ndarray, sizes: np.ndarray, size: tuple[int, int],
         for a in anchors:
             cost += W_ANCHOR * ((a[0] > box[:, 0] - gap) & (a[0] < box[:, 2] + gap)
                                 & (a[1] > box[:, 1] - gap) & (a[1] < box[:, 3] + gap))
+        for tail, head in np.asarray([] if arrows is None else arrows, float).reshape(-1, 2, 2):
+            cost += W_ANCHOR * _through(np.broadcast_to(tail, end.shape),
+                                        np.broadcast_to(head, end.shape), box.T + pad[:, None],
+                                        ends=True)
         for b, (p, q) in zip(placed, leaders, strict=True):
             cost += W_CROSS * (_crosses(np.broadcast_to(anchor, end.shape), end, p, q)
                                + _through(np.broadcast_to(anchor, end.shape), end, b + pad)

@@ -47,6 +47,8 @@ ARROW_COLOR: RGB = (215, 30, 30)
 FAINT: RGB = (190, 190, 190)
 #: Size (px) of the pictures and of the quick renders that choose their views.
 SIZE = (900, 675)
+#: Elevation (deg) of the eye over an upright exploded view (:func:`exploded_scene`).
+UPRIGHT_TILT = 10.0
 PROBE = (200, 150)
 
 
@@ -147,10 +149,11 @@ def locator_scene(pieces: Sequence[Piece], joint: Joint, shown: Sequence[int],
 
 
 def exploded_scene(groups: Sequence[tuple[Sequence[Piece], float]], joint: Joint,
-                   size: tuple[int, int] | None = None) -> Scene:
+                   size: tuple[int, int] | None = None, upright: bool = False) -> Scene:
     """Joint ``joint`` pulled apart: each group of pieces shifted by its offset (mm along
     the axis), framed on the joint (module docstring); ``size`` (px, None: :data:`SIZE`'s
-    width and the height the frame needs, at least 64 % of SIZE's)."""
+    width and the height the frame needs, at least 64 % of SIZE's); ``upright``: the axis
+    drawn top to bottom, seen from a little above (the base: the rod stands on its plate)."""
     w = np.asarray(joint.axis, float)
     w = w / np.linalg.norm(w)
     at = np.asarray(joint.point, float)
@@ -174,18 +177,23 @@ def exploded_scene(groups: Sequence[tuple[Sequence[Piece], float]], joint: Joint
     v = np.cross(w, u)
     best, pick = -np.inf, None
     cover = render.Coverage(items)
-    for tilt in (15.0, -15.0):
+    for tilt in ((UPRIGHT_TILT,) if upright else (15.0, -15.0)):
         for phi in np.radians(np.arange(0, 360, 45)):
             eye = np.cos(np.radians(tilt)) * (np.cos(phi) * u + np.sin(phi) * v) \
                 - np.sin(np.radians(tilt)) * w
-            up = np.cross(eye, w)
+            up = -w if upright else np.cross(eye, w)
             ring = _frame(joint.point, w, np.cross(w, eye), lo - margin, hi + margin, margin)
+            if upright:  # the whole of every piece in the frame (a plate reaches far out)
+                ring = np.concatenate([ring, *(it.mesh.bounding_box.vertices for it in items)])
             probe = View(size=PROBE, direction=tuple(eye), up=tuple(up), fit=ring, supersample=1)
             score = _seen_score(cover, probe, targets) + 0.3 * eye[2]
             if score > best:
                 best, pick = score, (eye, up, ring)
     eye, up, ring = pick
-    if size is None:  # as wide as the default, as high as the joint's frame needs
+    if size is None and upright:  # as high as the default, as wide as the frame needs
+        size = (int(np.clip(SIZE[1] * 2.5 * margin / (hi - lo + 2 * margin), 0.64 * SIZE[1],
+                            SIZE[0])), SIZE[1])
+    elif size is None:  # as wide as the default, as high as the joint's frame needs
         size = (SIZE[0], int(np.clip(SIZE[0] * 2.5 * margin / (hi - lo + 2 * margin),
                                      0.64 * SIZE[1], SIZE[1])))
     view = View(size=size, direction=tuple(eye), up=tuple(up), fit=ring, margin=0.06)
@@ -278,15 +286,17 @@ def assembly_scenes(asm: Assembly) -> list[tuple[str, Scene]]:
         rod = next(h for h in asm.hardware if h.role.endswith(" rod"))
         d = (b.bottom - b.top) / np.linalg.norm(b.bottom - b.top)
         length = float(np.linalg.norm(b.bottom - b.top))
-        pull = 0.25 * length
+        pull = 0.4 * length
+        # the rod lifted out of the plate's socket, the plate where it stands: seen upright,
+        # the arrow beside the rod points down into the socket
         groups = [([Piece("rod", _tm(rod.solid).apply_transform(world), PIN_COLOR,
-                          focus=True)], 0.0),
+                          focus=True)], -pull),
                   ([Piece("base plate: glue the rod in its socket", meshes[plate.name],
-                          _rgb(LINK_COLORS[6]), focus=True)], pull)]
+                          _rgb(LINK_COLORS[6]), focus=True)], 0.0)]
         foot = rot @ (b.bottom - 0.3 * length * d) + world[:3, 3]
         out.append(("guide_base.png", exploded_scene(groups, Joint(
-            0, foot, rot @ d, -0.7 * length, 0.3 * length, b.radius * 0.5,
-            name="the rod's axis"))))
+            0, foot, rot @ d, -0.7 * length, 0.3 * length, 2.5 * b.rod.d_mm,
+            name="the rod's axis"), upright=True)))
     return out
 
 

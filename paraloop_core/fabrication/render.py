@@ -382,7 +382,9 @@ def render_image(items: Sequence[Item], labels: Sequence[Label] = (),
         drawn |= small[..., k] != level
     font = annotate.font(view.font_px)
     sizes = np.array([annotate.box_size(lab.text, font) for lab in labels])
-    boxes = annotate.place_labels(anchors, sizes, view.size, drawn)
+    arrows = np.array([cam.project(np.array([ln.tail, ln.head]))[:, :2] / ss
+                       for ln in lines if isinstance(ln, Arrow3)]).reshape(-1, 2, 2)
+    boxes = annotate.place_labels(anchors, sizes, view.size, drawn, arrows=arrows)
     for lab, a, box in zip(labels, anchors, boxes, strict=True):
         annotate.leader(draw, a * ss, annotate.attach(a, box) * ss, lab.color, ss)
     im = im.reduce(ss) if ss > 1 else im
