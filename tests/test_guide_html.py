@@ -138,3 +138,16 @@ def test_non_text_is_refused():
         guide_html(Guide(title="t", facts=(Fact("size", 3),)))
     with pytest.raises(FabricationError):
         guide_html(Guide(title="  "))
+
+
+def test_step_titles_and_masses_read_as_words():
+    """A step's heading is its first clause (the page numbers the steps itself); small
+    parts' masses keep a decimal."""
+    from paraloop_core.fabrication import guide
+
+    assert guide.step_title("Joint 0 joins link 0 and link 1: put a washer on") == \
+        "Joint 0 joins link 0 and link 1"
+    assert guide.step_title("Glue the rod in. Then wait: an hour") == "Glue the rod in"
+    long = guide.step_title("word " * 40 + ": x")
+    assert len(long) <= guide.TITLE_CHARS + 4 and long.endswith(" ...")
+    assert (guide.grams(0.44), guide.grams(12.4), guide.grams(275.2)) == ("0.4", "12", "275")

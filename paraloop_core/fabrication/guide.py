@@ -80,12 +80,12 @@ def guide_text(asm, report: dict, material: profiles.Material, pictures: dict[st
     b = report.get("base")
     printed = [p for p in report["parts"] if "printed_as" not in p]  # pieces, not their link
     mass = sum(p["mass_g"] for p in printed)
+    note = choice.get("note", "").removeprefix("printed: ")  # the heading says it
     summary = [
         f"Size: {sz['size_mm']:.0f} mm (longest side of the loop), bars "
         f"{widths.min():.1f} - {widths.max():.1f} mm wide, {mass:.0f} g of "
         f"{material.name} in {len(printed)} printed parts.",
-        f"Printed loop: {choice['note']}." if choice.get("loop") != choice.get("design_loop")
-        or "note" in choice else "",
+        f"Printed loop: {note}." if note else "",
     ]
     if b is not None:
         summary.append(
@@ -132,22 +132,42 @@ def _pieces_text(part: dict) -> list[str]:
             for k, dw in enumerate(part["printed_as"]["dowels"])]
 
 
-def print_settings(printer: profiles.Printer, material: profiles.Material) -> list[str]:
-    """The print settings the parts are designed for."""
-    return [f"printer: {printer.name} ({printer.note}); bed "
-            f"{' x '.join(f'{v:g}' for v in printer.bed_mm)} mm",
-            f"material: {material.name}, nozzle {material.nozzle_c} C, bed {material.bed_c} C "
-            f"({material.note})",
-            f"layer height {printer.layer_mm:g} mm; 4 perimeters; 40 % infill (the bars are "
-            "then nearly solid: the stiffness in the report assumes that)",
-            "each part lies on the face the 3MF gives it (bars flat: layers along the bar); "
-            "supports only where the report lists support area (touching the bed only)",
-            f"holes are drawn {printer.hole_allowance_mm:g} mm over size for this printer; "
-            f"joint clearance {printer.clearance_mm:g} mm"]
+def print_settings(printer: profiles.Printer, material: profiles.Material
+                   ) -> list[tuple[str, str]]:
+    """The print settings the parts are designed for: ``(setting, value)`` rows."""
+    return [("printer", f"{printer.name} ({printer.note}); bed "
+                        f"{' x '.join(f'{v:g}' for v in printer.bed_mm)} mm"),
+            ("material", f"{material.name}, nozzle {material.nozzle_c} C, bed "
+                         f"{material.bed_c} C ({material.note})"),
+            ("layers", f"{printer.layer_mm:g} mm high; 4 perimeters; 40 % infill (the bars are "
+                       "then nearly solid: the stiffness in the report assumes that)"),
+            ("orientation", "each part lies on the face the 3MF gives it (bars flat: layers "
+                            "along the bar); supports only where the report lists support "
+                            "area (touching the bed only)"),
+            ("holes", f"drawn {printer.hole_allowance_mm:g} mm over size for this printer; "
+                      f"joint clearance {printer.clearance_mm:g} mm")]
 
 
-def markdown(title: str, text: dict, bom: list[dict], parts: list[dict], settings: list[str]
-             ) -> bytes:
+def grams(mass_g: float) -> str:
+    """A part's mass in words: whole grams, tenths below 10 g (a cap of 0.4 g is not 0)."""
+    return f"{mass_g:.0f}" if mass_g >= 9.95 else f"{mass_g:.1f}"
+
+
+#: Longest step title (characters) taken from a step's first clause (:func:`step_title`).
+TITLE_CHARS = 70
+
+
+def step_title(step: str) -> str:
+    """A step's heading: its text up to the first colon or full stop (``Joint 0 joins link
+    0 and link 1``), cut at a word within :data:`TITLE_CHARS`."""
+    head = step.replace(". ", ": ").split(": ", 1)[0].rstrip(".")
+    if len(head) <= TITLE_CHARS:
+        return head
+    return head[:TITLE_CHARS].rsplit(" ", 1)[0] + " ..."
+
+
+def markdown(title: str, text: dict, bom: list[dict], parts: list[dict],
+             settings: list[tuple[str, str]]) -> bytes:
     """``assembly.md``."""
     lines = [f"# {title}", "", *[f"- {s}" for s in text["summary"]], "",
              "## What you need", "", "| item | quantity | for |", "|---|---|---|",
@@ -155,8 +175,8 @@ def markdown(title: str, text: dict, bom: list[dict], parts: list[dict], setting
              "## Parts", "", "| part | size (mm) | mass (g) |", "|---|---|---|",
              *[f"| {p['name']}.stl{' (assembled: print its pieces)' * ('printed_as' in p)} | "
                f"{' x '.join(f'{v:.0f}' for v in sorted(p['obb_extents_mm'], reverse=True))} | "
-               f"{p['mass_g']:.0f} |" for p in parts], "",
-             "## Print settings", "", *[f"- {s}" for s in settings], "",
+               f"{grams(p['mass_g'])} |" for p in parts], "",
+             "## Print settings", "", *[f"- {k}: {v}" for k, v in settings], "",
              "## Assembly", ""]
     for k, (step, pic) in enumerate(text["steps"]):
         lines += [f"{k + 1}. {step}", ""]
@@ -190,13 +210,12 @@ def pages(printed, meshes: dict, placements: list, opts, report: dict
         bom=tuple(guide_html.BomLine(r["item"], str(r["quantity"]), r["for"])
                   for r in report["bill_of_materials"]),
         profiles=(guide_html.PrintProfile(f"{opts.printer.name}, {opts.material.name}", tuple(
-            guide_html.Fact(*line.split(": ", 1)) if ": " in line else
-            guide_html.Fact("note", line) for line in settings)),),
+            guide_html.Fact(k, v) for k, v in settings)),),
         parts=tuple(guide_html.PartRow(
             f"{p['name']}.stl", str(layout[p["name"]]["plate"]),
             "as laid in the 3MF", layout[p["name"]]["support_mm2"],
-            f"{p['mass_g']:.0f} g") for p in report["parts"] if p["name"] in layout),
+            f"{grams(p['mass_g'])} g") for p in report["parts"] if p["name"] in layout),
         steps=tuple(guide_html.Step(
-            f"Step {k + 1}", step, () if not pic else (guide_html.Picture(pic, step[:80]),))
-            for k, (step, pic) in enumerate(text["steps"])))
+            step_title(step), step, () if not pic else (guide_html.Picture(pic, step[:80]),))
+            for step, pic in text["steps"]))
     return [*shots, ("assembly.md", md), ("assembly.html", guide_html.guide_html(page))]
