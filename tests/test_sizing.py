@@ -386,6 +386,36 @@ def test_a_keel_that_fails_the_verification_is_narrowed_then_taken_off(monkeypat
     assert any("link 0 cannot lie on the bar's face" in w for w in out.report["warnings"])
 
 
+def test_a_candidate_that_falls_apart_without_its_keel_gives_way(monkeypatch):
+    """Random 62206 with printed pins: a keel that failed the verification came off and a
+    link then fell apart, which refused the whole export. Now that candidate is not built
+    (the report says why) and the next one is: here the first candidate's keels fail, its
+    rebuild falls apart, the second (the same loop) verifies and is printed."""
+    monkeypatch.setattr(flat, "lift", lambda slack: 1.0)
+    monkeypatch.setattr(flat, "lies_flat", lambda slack: False)
+    real_verify, real_build, calls = printable.check.verify, printable._fit_and_build, []
+
+    def verify(asm, *args, **kwargs):
+        ver = real_verify(asm, *args, **kwargs)
+        calls.append(asm)
+        if len(calls) == 1:  # the first candidate's keels come too close to another link
+            ver["pairs"][2]["colliding_samples"] = 5
+        return ver
+
+    def build(real, ee, plan, opts, keel_levels=(2,) * 6):
+        if keel_levels != (2,) * 6:  # rebuilt without a keel: a bar is cut through
+            raise FabricationError("link 0 falls apart into 2 pieces", "falls-apart")
+        return real_build(real, ee, plan, opts, keel_levels)
+
+    monkeypatch.setattr(printable.check, "verify", verify)
+    monkeypatch.setattr(printable, "_fit_and_build", build)
+    cands = [choice.Candidate(f"c{k}", 4, lambda: (F.real(), None)) for k in range(2)]
+    out = printable.make(cands, printable.Options(size_mm=F.SIZE_MM, samples=F.SAMPLES))
+    assert out.candidate == "c1" and len(calls) == 2
+    assert any(t.startswith("c0: not built without its keel (link 0 falls apart")
+               for t in out.report["choice"]["tried"])
+
+
 def test_print_in_place_is_refused_at_once():
     cand = choice.Candidate("roomy", 4, lambda: (F.real(), None))
     with pytest.raises(FabricationError, match="lean up to") as err:

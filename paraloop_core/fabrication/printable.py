@@ -180,8 +180,7 @@ def make(candidates: Iterable[choice.Candidate], opts: Options | None = None,
             asm, plan, ee_method = _fit_and_build(real, ee, plan, opts)
         except FabricationError as exc:  # a link cut through or pinched, or no room at the
             # size its built parts fit the bed: the next one
-            if exc.reason not in ("falls-apart", "not-watertight") and \
-                    not isinstance(exc, sizing.NoRoomError):
+            if not _unbuilt(exc):
                 raise
             tried.append(f"{cand.label}: not built ({exc})")
             error = exc
@@ -195,7 +194,15 @@ def make(candidates: Iterable[choice.Candidate], opts: Options | None = None,
             # its keels verified before it is taken: one taken off leaves its link over
             # supports, and the next candidate may lie flat
             hand(asm)
-            x = _settled(x, opts, progress, tried, lambda: hand(None))
+            try:
+                x = _settled(x, opts, progress, tried, lambda: hand(None))
+            except FabricationError as exc:  # without the keel in the way a link falls
+                # apart: this candidate does not print, the next may
+                if not _unbuilt(exc):
+                    raise
+                tried.append(f"{cand.label}: not built without its keel ({exc})")
+                error = exc
+                continue
             asm, b = x.asm, x.base
         built.append(x)
         if _accepted(asm, b, opts) and not shrunk:
@@ -213,12 +220,22 @@ def make(candidates: Iterable[choice.Candidate], opts: Options | None = None,
                          f"{', '.join(map(str, lifted))} would print over supports")
         if choice.cut(asm.joints):
             tried.append(f"{cand.label}: {_cut_words(asm.joints)}")
-    if not built:
+    # the best built (the earlier of equals), verified; where its keels come off and a link
+    # then falls apart, the next best
+    for x in sorted(built, key=lambda x: _built_score(x, opts.ground), reverse=True):
+        hand(x.asm)  # the STEP solids start before the verification (again if a keel comes off)
+        if x.ver is not None:
+            break
+        try:
+            x = _settled(x, opts, progress, tried, lambda: hand(None))
+            break
+        except FabricationError as exc:
+            if not _unbuilt(exc):
+                raise
+            tried.append(f"{x.cand.label}: not built without its keel ({exc})")
+            error = exc
+    else:
         raise error
-    x = max(built, key=lambda x: _built_score(x, opts.ground))
-    hand(x.asm)  # the STEP solids start before the verification (again if a keel comes off)
-    if x.ver is None:
-        x = _settled(x, opts, progress, tried, lambda: hand(None))
     cand, real, ee, plan, asm, ee_method, b, warnings, ver = x
     hand(asm)
     lifted = _lifted(asm)
@@ -330,6 +347,12 @@ def _motor_keeping_gaps(entry: Callable[[int], dict], worst: np.ndarray, tried: 
         if "error" not in e and not drive_mass.by_hand(e) and keeps(e["peak_torque_n_m"]):
             return {**e, "motor_chosen": MOTOR_KEEPS_GAPS}
     return None
+
+
+def _unbuilt(exc: FabricationError) -> bool:
+    """Whether ``exc`` says a candidate's parts do not build (a link cut through or pinched,
+    no room at the size they fit the bed): the next candidate is built instead."""
+    return exc.reason in ("falls-apart", "not-watertight") or isinstance(exc, sizing.NoRoomError)
 
 
 def _accepted(asm: Assembly, b: base.Base | None, opts: Options) -> bool:
