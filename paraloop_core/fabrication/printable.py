@@ -254,9 +254,9 @@ def make(candidates: Iterable[choice.Candidate], opts: Options | None = None,
                         "branch of its motion or jam; turn it slowly near its tightest pose")
     sized = sizing.to_dict(plan, opts.printer, rows.bounds_of(real))
     level = sizing.level_warnings(plan)
-    if plan.level >= sizing.LEVELS.index("thin bars"):
-        # thinner than the floors: whether a larger bed brings them within (the printed
-        # realization first, then those the others sized, then those without room here)
+    if plan.level >= thin:  # thinner than the floors: whether a larger bed brings them
+        # within (the printed realization first, then the others sized, then those without
+        # room here)
         others = [(c.label, r, e) for c, r, e, _ in ranked if c is not cand]
         sized["larger_print"] = remedy.stronger_print(
             [(cand.label, real, ee), *others, *roomless], opts, choice.plan_of)
