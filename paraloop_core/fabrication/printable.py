@@ -258,9 +258,11 @@ def make(candidates: Iterable[choice.Candidate], opts: Options | None = None,
         # within (the printed realization first, then the others sized, then those without
         # room here)
         others = [(c.label, r, e) for c, r, e, _ in ranked if c is not cand]
-        sized["larger_print"] = remedy.stronger_print(
-            [(cand.label, real, ee), *others, *roomless], opts, choice.plan_of)
-        level = [f"{level[0]}; {sized['larger_print']['sentence']}"]
+        larger = remedy.stronger_print([(cand.label, real, ee), *others, *roomless], opts,
+                                       choice.plan_of)
+        if larger:  # nothing where the maker fixed the size
+            sized["larger_print"] = larger
+            level = [f"{level[0]}; {larger['sentence']}"]
     report = {
         "choice": {"realization": cand.label, "loop": cand.loop, "tried": tried,
                    "radius": real.radius, "separation": real.separation},
