@@ -120,9 +120,10 @@ def drive_line(entry: dict) -> str:
     ``drive`` entry, :func:`entry`, or why it is missing)."""
     if "error" in entry:
         return f"motor torque not computed: {entry['error']}"
-    if by_hand(entry):
+    why = hand_reason(entry)
+    if why is not None:
         return (f"turn it by hand (holding the base and a link across the loop): "
-                f"{hand_reason(entry)}; {entry['moving_mass_kg']:.3g} kg moving "
+                f"{why}; {entry['moving_mass_kg']:.3g} kg moving "
                 f"({material(entry['density_kg_m3'])})")
     return (f"motor joint {entry['motor']} (resting link {entry['resting_link']}): peak torque "
             f"{entry['peak_torque_n_m']:.3g} N*m for {entry['moving_mass_kg']:.3g} kg moving "

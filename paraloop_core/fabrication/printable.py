@@ -194,15 +194,11 @@ def make(candidates: Iterable[choice.Candidate], opts: Options | None = None,
             # its keels verified before it is taken: one taken off leaves its link over
             # supports, and the next candidate may lie flat
             hand(asm)
-            try:
-                x = _settled(x, opts, progress, tried, lambda: hand(None))
-            except FabricationError as exc:  # without the keel in the way a link falls
-                # apart: this candidate does not print, the next may
-                if not _unbuilt(exc):
-                    raise
-                tried.append(f"{cand.label}: not built without its keel ({exc})")
-                error = exc
+            settled = _settled_or_why(x, opts, progress, tried, lambda: hand(None))
+            if isinstance(settled, FabricationError):  # the next candidate may print
+                error = settled
                 continue
+            x = settled
             asm, b = x.asm, x.base
         built.append(x)
         if _accepted(asm, b, opts) and not shrunk:
@@ -224,16 +220,12 @@ def make(candidates: Iterable[choice.Candidate], opts: Options | None = None,
     # then falls apart, the next best
     for x in sorted(built, key=lambda x: _built_score(x, opts.ground), reverse=True):
         hand(x.asm)  # the STEP solids start before the verification (again if a keel comes off)
-        if x.ver is not None:
+        settled = x if x.ver is not None else \
+            _settled_or_why(x, opts, progress, tried, lambda: hand(None))
+        if not isinstance(settled, FabricationError):
+            x = settled
             break
-        try:
-            x = _settled(x, opts, progress, tried, lambda: hand(None))
-            break
-        except FabricationError as exc:
-            if not _unbuilt(exc):
-                raise
-            tried.append(f"{x.cand.label}: not built without its keel ({exc})")
-            error = exc
+        error = settled
     else:
         raise error
     cand, real, ee, plan, asm, ee_method, b, warnings, ver = x
@@ -420,6 +412,19 @@ def _settled(x: _Built, opts: Options, progress: Progress | None, tried: list[st
                            keels=None if n == KEEL_ROUNDS - 1 else
                            [p.keel_mm for p in asm.links])
     return _Built(cand, real, ee, plan, asm, ee_method, b, warnings, ver)
+
+
+def _settled_or_why(x: _Built, opts: Options, progress: Progress | None, tried: list[str],
+                    drop: Callable[[], None]) -> _Built | FabricationError:
+    """:func:`_settled`, or why the candidate does not print: without a keel in the way a
+    link falls apart (:func:`_unbuilt`; ``tried`` says so), the next candidate may print."""
+    try:
+        return _settled(x, opts, progress, tried, drop)
+    except FabricationError as exc:
+        if not _unbuilt(exc):
+            raise
+        tried.append(f"{x.cand.label}: not built without its keel ({exc})")
+        return exc
 
 
 def _built_score(x: _Built, ground: bool) -> tuple:

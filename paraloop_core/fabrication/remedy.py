@@ -84,23 +84,38 @@ def larger_print(refused: Sequence[Refused], opts: Options, size: Sizer) -> str:
     ``refused``, or that none up to ``FACTORS[-1]`` times has it. ``refused`` empty: ""."""
     if not refused:
         return ""
-    refused = list(refused)[:MAX_TRIED]
-    # the largest print first: the realizations without room even there are left out
-    roomy = [(c, _size_mm(c, _scaled(opts, FACTORS[-1]), size)) for c in refused]
-    roomy = [(c, s) for c, s in roomy if s is not None]
-    if not roomy:
+    found = _smallest_print(list(refused)[:MAX_TRIED], opts, FACTORS, size)
+    if found is None:
         what = "a size" if opts.size_mm is not None else "a bed"
         return (f" A larger print would not help: at {what} {FACTORS[-1]:g} times as large no "
                 "realization tried has room for its joints either. What would work: a design "
                 "whose links pass farther apart (other poses, family or mu).")
-    for f in FACTORS[:-1]:
+    label, scaled, plan = found
+    return _words(label, scaled, float(plan.size_mm))
+
+
+def _smallest_print(cands: Sequence[Refused], opts: Options, factors: Sequence[float],
+                    size: Sizer, ok: Callable[[Any], bool] = lambda plan: True
+                    ) -> tuple[str, Options, Any] | None:
+    """``(label, options, plan)`` of the smallest print of ``factors`` times ``opts``' on
+    which ``size`` gives one of ``cands`` (in order) a plan ``ok`` takes, or None. The
+    largest print first: the realizations without one even there are left out."""
+    def plan_on(c: Refused, scaled: Options) -> Any:
+        try:
+            plan = size(c[1], scaled, c[2])
+        except FabricationError:
+            return None
+        return plan if ok(plan) else None
+
+    largest = _scaled(opts, factors[-1])
+    kept = [(c, p) for c in cands if (p := plan_on(c, largest)) is not None]
+    for f in factors[:-1]:
         scaled = _scaled(opts, f)
-        for c, _ in roomy:
-            size_mm = _size_mm(c, scaled, size)
-            if size_mm is not None:
-                return _words(c[0], scaled, size_mm)
-    (label, _, _), size_mm = roomy[0]
-    return _words(label, _scaled(opts, FACTORS[-1]), size_mm)
+        for c, _ in kept:
+            plan = plan_on(c, scaled)
+            if plan is not None:
+                return c[0], scaled, plan
+    return (kept[0][0][0], largest, kept[0][1]) if kept else None
 
 
 #: Multiples of the bed tried for bars within the floors (:func:`stronger_print`), and how
@@ -118,32 +133,19 @@ def stronger_print(sized: Sequence[Refused], opts: Options, size: Sizer) -> dict
     "sentence": ...}`` saying none reaches it; with a size the maker fixed, ``{}``."""
     if opts.size_mm is not None or not sized:
         return {}
-
-    def within(c: Refused, f: float) -> Any:  # the plan on the bed f times this, if within
-        try:
-            plan: Any = size(c[1], _scaled(opts, f), c[2])
-        except FabricationError:
-            return None
-        return plan if plan.level < LEVELS.index("thin bars") else None
-
-    # the largest bed first: the realizations not within the floors even there are left out
-    largest = [(c, within(c, STRONGER_FACTORS[-1])) for c in list(sized)[:STRONGER_TRIED]]
-    largest = [(c, p) for c, p in largest if p is not None]
-    for f in STRONGER_FACTORS:
-        scaled = _scaled(opts, f)
-        for (label, real, ee), top in largest:
-            plan = top if f == STRONGER_FACTORS[-1] else within((label, real, ee), f)
-            if plan is None:
-                continue
-            width = plan.radii * FLATS
-            lw = float(max(plan.deflection.lengths / width))
-            x, y, z = scaled.printer.bed_mm
-            return {"bed_mm": [x, y, z], "realization": label, "size_mm": plan.size_mm,
-                    "bar_width_mm": float(width.min()), "length_per_width": lw,
-                    "sentence": f"what would work: a bed of at least {x:.0f} x {y:.0f} x "
-                                f"{z:.0f} mm (--bed {x:.0f},{y:.0f},{z:.0f}), where {label} has "
-                                f"bars {width.min():.1f} mm wide or more and at most {lw:.0f} "
-                                f"times as long as wide at {plan.size_mm:.0f} mm"}
+    found = _smallest_print(list(sized)[:STRONGER_TRIED], opts, STRONGER_FACTORS, size,
+                            lambda plan: plan.level < LEVELS.index("thin bars"))
+    if found is not None:
+        label, scaled, plan = found
+        width = plan.radii * FLATS
+        lw = float(max(plan.deflection.lengths / width))
+        x, y, z = scaled.printer.bed_mm
+        return {"bed_mm": [x, y, z], "realization": label, "size_mm": plan.size_mm,
+                "bar_width_mm": float(width.min()), "length_per_width": lw,
+                "sentence": f"what would work: a bed of at least {x:.0f} x {y:.0f} x {z:.0f} "
+                            f"mm (--bed {x:.0f},{y:.0f},{z:.0f}), where {label} has bars "
+                            f"{width.min():.1f} mm wide or more and at most {lw:.0f} times as "
+                            f"long as wide at {plan.size_mm:.0f} mm"}
     return {"bed_mm": None, "sentence": f"no bed up to {STRONGER_FACTORS[-1]:g} times this "
             "one gives the realizations tried bars within those; what would work: a design "
             "whose links pass farther apart (other poses, family or mu)"}
@@ -168,13 +170,3 @@ def _scaled(opts: Options, f: float) -> Options:
     bed = tuple(float(math.ceil(v * f)) for v in opts.printer.bed_mm)
     return replace(opts, printer=replace(opts.printer, name=f"{opts.printer.name} x{f:g}",
                                          bed_mm=bed))
-
-
-def _size_mm(refused: Refused, opts: Options, size: Sizer) -> float | None:
-    """The size of ``size``'s plan for the refused realization under ``opts``, None when it
-    has no room there either."""
-    _, real, ee = refused
-    try:
-        return float(size(real, opts, ee).size_mm)  # type: ignore[attr-defined]
-    except FabricationError:
-        return None

@@ -176,6 +176,13 @@ def radii(b: Bounds, k: float, rmin: np.ndarray, rcap: float | np.ndarray, bmin:
     return x[:6], x[6:]
 
 
+def least_bosses(r: np.ndarray, bmin: float) -> np.ndarray:
+    """The least boss radius ``(6,)`` (mm) of each joint j for bars ``r`` ``(6,)``: the
+    fillet round both bars it joins (links j and j+1, :data:`BOSS_PER_BAR`), at least
+    ``bmin``."""
+    return np.maximum(bmin, BOSS_PER_BAR * np.maximum(r, np.roll(r, -1)))
+
+
 def envelopes(layouts: tuple[joints.Joint, ...]) -> np.ndarray:
     """:func:`joints.envelope` of each joint ``(6, 2)`` (mm)."""
     return np.array([joints.envelope(j) for j in layouts])

@@ -24,7 +24,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from paraloop_core.errors import FabricationError
-from paraloop_core.fabrication import bed, flat, joints, stiffness
+from paraloop_core.fabrication import bed, flat, joints, rows, stiffness
 from paraloop_core.fabrication.profiles import Material, Printer, Rod
 from paraloop_core.fabrication.rows import BOSS_PER_BAR, Bounds, bounds_of, envelopes, radii
 
@@ -193,7 +193,7 @@ def _floors_fit(b: Bounds, k: float, floor: np.ndarray, printer: Printer, kind: 
     """Whether bars at their ``floor`` radii, the least bosses and gaps meet every row:
     each deflection bound of :func:`at_scale` asks more (thicker bars, bosses reaching
     farther, larger gaps), so where this fails their programmes are skipped."""
-    boss = np.maximum(bmin, BOSS_PER_BAR * np.maximum(floor, np.roll(floor, -1)))
+    boss = rows.least_bosses(floor, bmin)
     try:
         env = envelopes(_layouts(b, k, floor, boss, kind, printer, eps))
     except FabricationError:
@@ -277,7 +277,7 @@ def _fixed_point(real, b: Bounds, k: float, printer: Printer, material: Material
                  eps: float, rmin: np.ndarray, rcap: np.ndarray, bmin: float,
                  gaps: np.ndarray, matrix: np.ndarray, rest: int | None) -> Plan | None:
     r = rmin
-    boss = np.maximum(bmin, BOSS_PER_BAR * np.maximum(r, np.roll(r, -1)))
+    boss = rows.least_bosses(r, bmin)
     env = np.zeros((6, 2))
     for _ in range(4):
         try:
